@@ -1,0 +1,1 @@
+// placeholder until shared test fixtures land
