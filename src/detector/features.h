@@ -1,0 +1,55 @@
+#pragma once
+// SIFT extraction and the 2D grid index over keypoints ("2D map of pointers", paper III-B).
+//
+// Pixel convention: keypoint positions are in input-image pixels, centre of the top-left pixel at
+// (0, 0). OpenCV's internal 2x up-sampling shifts its reported positions by +0.25 px; extractSift
+// removes that bias. Keypoint angle is OpenCV's (degrees, measured in image coordinates from +u
+// towards +v); size is the diameter of the keypoint neighbourhood in pixels.
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+#include <vector>
+
+namespace refgrasp::detector {
+
+struct SiftOptions {
+  int max_features = 0;             ///< keep the strongest N by response; 0 = all
+  int octave_layers = 3;            ///< scales per octave
+  double contrast_threshold = 0.04;
+  double edge_threshold = 10;
+  double sigma = 1.6;               ///< Gaussian sigma of the base octave
+  /// The paper's initial 2x up-sampling (OpenCV always up-samples internally; false runs SIFT on
+  /// the image down-sampled by 2 so that its first octave has the input's resolution).
+  bool upsample = true;
+  /// Throws std::invalid_argument on nonsense.
+  void check() const;
+};
+
+struct Features {
+  std::vector<cv::KeyPoint> keypoints;  ///< pt in input-image pixels
+  cv::Mat descriptors;                  ///< CV_32F, N x 128, row i describes keypoints[i]
+  cv::Size image_size;                  ///< size of the image the features were extracted from
+  int size() const { return static_cast<int>(keypoints.size()); }
+};
+
+/// Deterministic SIFT on an 8-bit grayscale image (CV_8UC1; colour is converted).
+/// Throws std::invalid_argument on an empty image or opt.check() failure.
+Features extractSift(const cv::Mat& gray, const SiftOptions& opt);
+
+/// Uniform grid of keypoint indices for radius queries. Keypoints outside the image are clamped
+/// into the border cells (still found by an exact distance test).
+class GridIndex {
+ public:
+  GridIndex() = default;
+  GridIndex(const std::vector<cv::KeyPoint>& kps, cv::Size image_size, int cell_px = 16);
+  /// Appends (after clearing *out) the indices i with |kps[i].pt - centre| <= radius_px.
+  void radiusSearch(const Eigen::Vector2d& centre, double radius_px, std::vector<int>* out) const;
+  int cellPx() const { return cell_px_; }
+
+ private:
+  int cell_px_ = 16, cols_ = 0, rows_ = 0;
+  std::vector<float> x_, y_;      ///< keypoint positions, indexed like the input
+  std::vector<int> cell_start_;   ///< CSR: indices of cell c are order_[cell_start_[c] .. cell_start_[c+1])
+  std::vector<int> order_;
+};
+
+}  // namespace refgrasp::detector

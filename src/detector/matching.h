@@ -1,0 +1,82 @@
+#pragma once
+// Matching reference features to a scene: the paper's local-geometric-consistency matcher
+// (Section III-B) and the usual ratio-test + robust homography baseline.
+//
+// Frames: "reference px" are pixels of the reference image (possibly undistorted by the caller),
+// "scene px" pixels of the scene image. Every homography maps reference px to scene px:
+// x_s ~ H x_r.
+#include <Eigen/Core>
+#include <cmath>
+#include <cstdint>
+#include <memory>
+#include <opencv2/core.hpp>
+#include <vector>
+
+#include "detector/features.h"
+
+namespace refgrasp::detector {
+
+enum class MatcherType { kPaper, kRatio };
+
+struct MatchOptions {
+  MatcherType matcher = MatcherType::kPaper;
+  double global_ratio = 0.8;           ///< Lowe ratio for global matches (seeds / baseline)
+  double local_ratio = 0.5;            ///< ratio between best and second-best local candidate
+  /// Local search radius = factor x expected localisation error of the hypothesis (see
+  /// matching.cpp: expected = 2 px + 0.1 x distance from the seed, in scene px).
+  double search_radius_factor = 2.0;
+  double orientation_tolerance_rad = M_PI / 3;  ///< |o_s - predicted o| bound
+  double scale_tolerance = 0.5;        ///< |s_s - predicted s| <= scale_tolerance * predicted s
+  int max_hypotheses = 200;            ///< cap on hypotheses given a local search
+  int max_reference_features = 1000;   ///< strongest reference features kept (by response)
+  int min_inliers = 12;                ///< homography inliers needed to accept an instance
+  double ransac_reproj_px = 3.0;
+  int max_instances = 1;               ///< disjoint instances reported per object
+  uint64_t seed = 0;
+  /// Throws std::invalid_argument on nonsense.
+  void check() const;
+};
+
+/// Built once per object: reference features (strongest max_reference_features inside the
+/// pattern polygon), pattern geometry and the descriptor index used for global matching.
+struct ReferenceIndex {
+  Features features;                          ///< kept reference features (indices used below)
+  std::vector<Eigen::Vector2d> polygon_px;    ///< pattern polygon, reference px
+  Eigen::Vector2d centre_px = Eigen::Vector2d::Zero();  ///< pattern centre c_r (polygon centroid)
+  double diagonal_px = 0;                     ///< diagonal of the polygon's bounding box
+  std::vector<std::vector<int>> neighbours;   ///< per feature: nearest features (spatial), self first
+  cv::Mat descriptors_u8;                     ///< CV_8U copy (OpenCV SIFT values are integers)
+  std::vector<int> descriptor_norm2;          ///< squared L2 norms of descriptors_u8 rows
+};
+
+/// Keeps features inside the polygon (>= 3 vertices; empty = whole image), then the strongest
+/// opt.max_reference_features. Keypoint .pt may already be undistorted by the caller.
+ReferenceIndex buildReferenceIndex(Features ref_features,
+                                   const std::vector<Eigen::Vector2d>& pattern_polygon_px,
+                                   const MatchOptions& opt);
+
+struct Correspondence {
+  int ref;                    ///< index into ReferenceIndex::features
+  int scene;                  ///< index into the scene Features
+  float descriptor_distance;  ///< L2 distance between the SIFT descriptors
+};
+
+struct MatchCandidate {
+  std::vector<Correspondence> inliers;  ///< homography inliers
+  Eigen::Matrix3d H = Eigen::Matrix3d::Identity();  ///< reference px -> scene px: x_s ~ H x_r
+  double score = 0;  ///< eq. 3 over the inliers (mean image distance x descriptor distance), lower is better
+};
+
+struct MatchResult {
+  /// Best first, disjoint in the scene, each with >= min_inliers and a plausible H.
+  std::vector<MatchCandidate> instances;
+  int hypotheses_evaluated = 0;  ///< hypotheses given a local search (paper) / 1 (ratio)
+  int global_matches = 0;        ///< scene features passing the global ratio test
+};
+
+/// Finds up to opt.max_instances instances of the reference in the scene. grid must index
+/// scene.keypoints. An empty result is the normal "not found".
+MatchResult matchObject(const ReferenceIndex& ref, const Features& scene, const GridIndex& grid,
+                        const MatchOptions& opt);
+
+}  // namespace refgrasp::detector
