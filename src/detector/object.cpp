@@ -1,0 +1,193 @@
+#include "detector/object.h"
+
+#include <cmath>
+#include <filesystem>
+#include <opencv2/imgcodecs.hpp>
+
+#include "core/error.h"
+#include "core/yaml.h"
+
+namespace refgrasp::detector {
+namespace fs = std::filesystem;
+
+namespace {
+
+double cross2(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
+  return a.x() * b.y() - a.y() * b.x();
+}
+
+// Proper or touching intersection of segments ab and cd.
+bool segmentsIntersect(const Eigen::Vector2d& a, const Eigen::Vector2d& b,
+                       const Eigen::Vector2d& c, const Eigen::Vector2d& d) {
+  const double d1 = cross2(b - a, c - a), d2 = cross2(b - a, d - a);
+  const double d3 = cross2(d - c, a - c), d4 = cross2(d - c, b - c);
+  if (((d1 > 0 && d2 < 0) || (d1 < 0 && d2 > 0)) && ((d3 > 0 && d4 < 0) || (d3 < 0 && d4 > 0)))
+    return true;
+  auto onSeg = [](const Eigen::Vector2d& p, const Eigen::Vector2d& q, const Eigen::Vector2d& r) {
+    return std::min(p.x(), q.x()) <= r.x() && r.x() <= std::max(p.x(), q.x()) &&
+           std::min(p.y(), q.y()) <= r.y() && r.y() <= std::max(p.y(), q.y());
+  };
+  return (d1 == 0 && onSeg(a, b, c)) || (d2 == 0 && onSeg(a, b, d)) ||
+         (d3 == 0 && onSeg(c, d, a)) || (d4 == 0 && onSeg(c, d, b));
+}
+
+bool isSimplePolygon(const std::vector<Eigen::Vector2d>& p) {
+  const size_t n = p.size();
+  for (size_t i = 0; i < n; ++i)
+    for (size_t j = i + 1; j < n; ++j) {
+      if (j == i + 1 || (i == 0 && j == n - 1)) continue;  // adjacent edges share a vertex
+      if (segmentsIntersect(p[i], p[(i + 1) % n], p[j], p[(j + 1) % n])) return false;
+    }
+  return true;
+}
+
+double polygonArea(const std::vector<Eigen::Vector2d>& p) {
+  double a = 0;
+  for (size_t i = 0; i < p.size(); ++i) a += cross2(p[i], p[(i + 1) % p.size()]);
+  return 0.5 * a;
+}
+
+}  // namespace
+
+ObjectModel makeObjectModel(const std::string& name, const cv::Mat& reference_gray,
+                            const std::optional<Intrinsics>& camera,
+                            const std::optional<Pose>& reference_cMo,
+                            std::vector<Eigen::Vector2d> polygon,
+                            const Eigen::Vector3d& plane_normal_o, double plane_offset_m,
+                            const std::string& source) {
+  const std::string where = source.empty() ? "object '" + name + "'" : source;
+  auto fail = [&](const std::string& field, const std::string& problem) {
+    throw ConfigError(where, field, problem);
+  };
+  if (reference_gray.empty()) fail("reference_image", "empty image");
+  if (reference_gray.type() != CV_8UC1) fail("reference_image", "expected 8-bit grayscale");
+  const int W = reference_gray.cols, H = reference_gray.rows;
+  if (camera) {
+    try {
+      camera->check();
+    } catch (const std::invalid_argument& e) {
+      fail("camera", e.what());
+    }
+    if (camera->width != W || camera->height != H)
+      fail("camera", "size " + std::to_string(camera->width) + "x" +
+                         std::to_string(camera->height) + " differs from the reference image " +
+                         std::to_string(W) + "x" + std::to_string(H));
+  }
+  if (reference_cMo) {
+    if (!camera) fail("camera", "required when reference_pose is given");
+    if (!reference_cMo->isFinite()) fail("reference_pose", "must be finite");
+  }
+  if (!plane_normal_o.allFinite() || !std::isfinite(plane_offset_m))
+    fail("pattern_plane", "must be finite");
+  if (plane_normal_o.norm() < 1e-12) fail("pattern_plane.normal", "must be non-zero");
+
+  if (polygon.empty()) {
+    polygon = {{-0.5, -0.5}, {W - 0.5, -0.5}, {W - 0.5, H - 0.5}, {-0.5, H - 0.5}};
+  } else {
+    if (polygon.size() < 3) fail("pattern_region", "needs at least 3 points");
+    for (size_t i = 0; i < polygon.size(); ++i) {
+      const auto& p = polygon[i];
+      if (!p.allFinite()) fail("pattern_region", "point " + std::to_string(i) + " is not finite");
+      if (p.x() < -0.5 || p.y() < -0.5 || p.x() > W - 0.5 || p.y() > H - 0.5)
+        fail("pattern_region", "point " + std::to_string(i) + " lies outside the " +
+                                   std::to_string(W) + "x" + std::to_string(H) + " image");
+    }
+    if (!isSimplePolygon(polygon)) fail("pattern_region", "polygon is self-intersecting");
+    if (std::abs(polygonArea(polygon)) < 16.0) fail("pattern_region", "polygon area below 16 px^2");
+  }
+
+  ObjectModel m;
+  m.name = name;
+  m.source = source;
+  m.reference = reference_gray.clone();
+  m.camera = camera;
+  m.reference_cMo = reference_cMo;
+  m.pattern_polygon_px = polygon;
+  m.plane_normal_o = plane_normal_o;
+  m.plane_offset_m = plane_offset_m;
+  if (polygon.size() == 4) {
+    for (int i = 0; i < 4; ++i) m.corners_px[i] = polygon[i];
+  } else {
+    Eigen::Vector2d lo = polygon[0], hi = polygon[0];
+    for (const auto& p : polygon) {
+      lo = lo.cwiseMin(p);
+      hi = hi.cwiseMax(p);
+    }
+    m.corners_px = {lo, Eigen::Vector2d(hi.x(), lo.y()), hi, Eigen::Vector2d(lo.x(), hi.y())};
+  }
+  if (reference_cMo) {
+    std::array<Eigen::Vector2d, 4> und;
+    for (int i = 0; i < 4; ++i) und[i] = camera->undistortPixel(m.corners_px[i]);
+    m.target = makePlanarTarget(camera->K(), *reference_cMo, plane_normal_o, plane_offset_m, und);
+    if (!m.target)
+      fail("pattern_plane", "the pattern corners' viewing rays do not meet the plane in front of "
+                            "the reference camera");
+  }
+  return m;
+}
+
+Intrinsics textureCamera(const cv::Mat& texture, double width_m, double z_ref_m) {
+  const double f = texture.cols * z_ref_m / width_m;
+  return Intrinsics::pinhole(texture.cols, texture.rows, f, (texture.cols - 1) / 2.0,
+                             (texture.rows - 1) / 2.0);
+}
+
+ObjectModel textureObject(const std::string& name, const cv::Mat& texture_gray, double width_m,
+                          double z_ref_m) {
+  return makeObjectModel(name, texture_gray, textureCamera(texture_gray, width_m, z_ref_m),
+                         Pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0, 0, z_ref_m)));
+}
+
+ObjectModel loadObjectDefinition(const std::string& path) {
+  const YamlFile f(path);
+  const YAML::Node& r = f.root();
+  const std::string name = f.string(r, "name", fs::path(path).stem().string());
+
+  const std::string image_path = f.resolve(f.string(r, "reference_image"));
+  std::error_code ec;
+  if (!fs::is_regular_file(image_path, ec))
+    f.fail("reference_image", "file not found: " + image_path);
+  const cv::Mat image = cv::imread(image_path, cv::IMREAD_GRAYSCALE);
+  if (image.empty())
+    f.fail("reference_image", "cannot decode image (corrupt or unsupported format): " + image_path);
+
+  std::optional<Intrinsics> camera;
+  if (f.has(r, "camera")) {
+    try {
+      camera = loadCameraFile(f.resolve(f.string(r, "camera")));
+    } catch (const ConfigError& e) {
+      f.fail("camera", e.what());
+    }
+  }
+  std::optional<Pose> ref_cMo;
+  if (f.has(r, "reference_pose")) ref_cMo = f.pose(r, "reference_pose");
+
+  std::vector<Eigen::Vector2d> polygon;
+  if (f.has(r, "pattern_region")) {
+    const YAML::Node seq = f.get(r, "pattern_region");
+    if (!seq.IsSequence()) f.fail("pattern_region", "expected a list of [u, v] points");
+    for (size_t i = 0; i < seq.size(); ++i) {
+      const std::string field = "pattern_region[" + std::to_string(i) + "]";
+      if (!seq[i].IsSequence() || seq[i].size() != 2) f.fail(field, "expected [u, v]");
+      Eigen::Vector2d p;
+      for (int k = 0; k < 2; ++k) {
+        try {
+          p[k] = seq[i][k].as<double>();
+        } catch (const YAML::Exception&) {
+          f.fail(field, "expected two numbers");
+        }
+      }
+      if (!p.allFinite()) f.fail(field, "must be finite");
+      polygon.push_back(p);
+    }
+  }
+  Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
+  double offset = 0;
+  if (f.has(r, "pattern_plane")) {
+    if (f.has(r, "pattern_plane.normal")) normal = f.vec3(r, "pattern_plane.normal");
+    offset = f.number(r, "pattern_plane.offset", 0.0);
+  }
+  return makeObjectModel(name, image, camera, ref_cMo, polygon, normal, offset, path);
+}
+
+}  // namespace refgrasp::detector

@@ -1,1 +1,0 @@
-// placeholder until robot sources land

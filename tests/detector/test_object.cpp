@@ -1,0 +1,148 @@
+// Object definition files: geometry of a valid definition, and one clear error per bad input.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "core/error.h"
+#include "detector/object.h"
+
+using namespace refgrasp;
+using namespace refgrasp::detector;
+namespace fs = std::filesystem;
+
+namespace {
+
+fs::path testDir() {
+  const fs::path d = fs::temp_directory_path() / "refgrasp_test_object";
+  fs::create_directories(d);
+  return d;
+}
+
+std::string write(const std::string& name, const std::string& text) {
+  const fs::path p = testDir() / name;
+  std::ofstream(p) << text;
+  return p.string();
+}
+
+// 400x300 texture and a matching camera: a 0.2 m wide texture seen at 0.5 m (f = 1000).
+void writeFixtures() {
+  cv::Mat img(300, 400, CV_8UC1);
+  cv::randu(img, 0, 255);
+  cv::imwrite((testDir() / "tex.png").string(), img);
+  write("cam.yaml", R"(image_width: 400
+image_height: 300
+camera_matrix: {rows: 3, cols: 3, data: [1000, 0, 199.5, 0, 1000, 149.5, 0, 0, 1]}
+distortion_model: plumb_bob
+distortion_coefficients: {rows: 1, cols: 5, data: [0, 0, 0, 0, 0]}
+)");
+  write("cam_small.yaml", R"(image_width: 320
+image_height: 240
+camera_matrix: {rows: 3, cols: 3, data: [500, 0, 159.5, 0, 500, 119.5, 0, 0, 1]}
+)");
+  std::ofstream(testDir() / "corrupt.png") << "\x89PNG\r\n\x1a\n this is not really a png";
+}
+
+const char* kPose = "reference_pose: {translation: [0, 0, 0.5], rotation_vector: [0, 0, 0]}\n";
+
+// Loads `yaml` and returns the ConfigError message ("" when it loaded).
+std::string loadError(const std::string& name, const std::string& yaml) {
+  const std::string path = write(name, yaml);
+  try {
+    loadObjectDefinition(path);
+  } catch (const ConfigError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+class ObjectFile : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() { writeFixtures(); }
+};
+
+}  // namespace
+
+TEST_F(ObjectFile, FullDefinitionGivesTextureCorners) {
+  const ObjectModel m = loadObjectDefinition(
+      write("full.yaml", std::string("reference_image: tex.png\ncamera: cam.yaml\n") + kPose));
+  EXPECT_EQ(m.name, "full");
+  EXPECT_EQ(m.reference.cols, 400);
+  EXPECT_EQ(m.reference.type(), CV_8UC1);
+  ASSERT_TRUE(m.has3d());
+  // DEVELOPERS.md texture convention: pixel-edge corners at (+-0.1, +-0.075, 0).
+  const Eigen::Vector3d expect[4] = {{-0.1, -0.075, 0}, {0.1, -0.075, 0}, {0.1, 0.075, 0}, {-0.1, 0.075, 0}};
+  for (int i = 0; i < 4; ++i) EXPECT_NEAR((m.target->corners_o[i] - expect[i]).norm(), 0, 1e-12) << i;
+  EXPECT_NEAR((m.corners_px[2] - Eigen::Vector2d(399.5, 299.5)).norm(), 0, 1e-12);
+  // textureObject() builds the same model in code.
+  const ObjectModel t = textureObject("t", m.reference, 0.2, 0.5);
+  for (int i = 0; i < 4; ++i) EXPECT_NEAR((t.target->corners_o[i] - expect[i]).norm(), 0, 1e-12);
+}
+
+TEST_F(ObjectFile, RegionAndPlaneOptions) {
+  // 4-point region: its vertices are the corners; 5 points: the bounding box.
+  const ObjectModel four = loadObjectDefinition(write("four.yaml", std::string(
+      "name: box\nreference_image: tex.png\ncamera: cam.yaml\n") + kPose +
+      "pattern_region: [[100, 50], [300, 50], [300, 250], [100, 250]]\n"));
+  EXPECT_EQ(four.name, "box");
+  EXPECT_NEAR((four.target->corners_o[0] - Eigen::Vector3d(-0.04975, -0.04975, 0)).norm(), 0, 1e-12);
+  const ObjectModel five = loadObjectDefinition(write("five.yaml",
+      "reference_image: tex.png\npattern_region: [[100, 50], [300, 60], [320, 200], [200, 250], [90, 150]]\n"));
+  EXPECT_FALSE(five.has3d());  // no reference_pose: 2D-only
+  EXPECT_NEAR((five.corners_px[0] - Eigen::Vector2d(90, 50)).norm(), 0, 1e-12);
+  EXPECT_NEAR((five.corners_px[2] - Eigen::Vector2d(320, 250)).norm(), 0, 1e-12);
+  // A plane 2 cm in front of the object origin (n.X = offset with n = -z, offset 0.02 => z = -0.02).
+  const ObjectModel off = loadObjectDefinition(write("plane.yaml", std::string(
+      "reference_image: tex.png\ncamera: cam.yaml\n") + kPose +
+      "pattern_plane: {normal: [0, 0, -1], offset: 0.02}\n"));
+  for (const auto& X : off.target->corners_o) EXPECT_NEAR(X.z(), -0.02, 1e-12);
+  EXPECT_NEAR(off.target->corners_o[2].x(), 0.1 * 0.48 / 0.5, 1e-12);
+}
+
+TEST_F(ObjectFile, BadInputsGiveOneLineErrorsNamingFileAndField) {
+  struct Case {
+    std::string name, yaml, field;
+  };
+  const std::string base = "reference_image: tex.png\ncamera: cam.yaml\n";
+  const std::vector<Case> cases = {
+      {"invalid.yaml", "reference_image: [tex.png\n", "invalid YAML"},
+      {"no_image.yaml", "camera: cam.yaml\n", "reference_image"},
+      {"missing_image.yaml", "reference_image: nothere.png\n", "reference_image"},
+      {"corrupt_image.yaml", "reference_image: corrupt.png\n", "reference_image"},
+      {"pose_no_camera.yaml", std::string("reference_image: tex.png\n") + kPose, "camera"},
+      {"camera_missing.yaml", "reference_image: tex.png\ncamera: nocam.yaml\n", "camera"},
+      {"camera_size.yaml", "reference_image: tex.png\ncamera: cam_small.yaml\n", "camera"},
+      {"pose_nan.yaml", base + "reference_pose: {translation: [0, .nan, 0.5], rotation_vector: [0, 0, 0]}\n",
+       "reference_pose.translation"},
+      {"pose_short.yaml", base + "reference_pose: {translation: [0, 0.5], rotation_vector: [0, 0, 0]}\n",
+       "reference_pose.translation"},
+      {"region_two.yaml", base + "pattern_region: [[0, 0], [10, 10]]\n", "pattern_region"},
+      {"region_cross.yaml", base + "pattern_region: [[0, 0], [100, 100], [100, 0], [0, 100]]\n",
+       "pattern_region"},
+      {"region_outside.yaml", base + "pattern_region: [[0, 0], [500, 0], [100, 100]]\n", "pattern_region"},
+      {"region_nan.yaml", base + "pattern_region: [[0, 0], [.nan, 0], [100, 100]]\n", "pattern_region[1]"},
+      {"region_shape.yaml", base + "pattern_region: [[0, 0, 1], [10, 0], [10, 10]]\n", "pattern_region[0]"},
+      {"region_text.yaml", base + "pattern_region: [[0, 0], [a, 0], [10, 10]]\n", "pattern_region[1]"},
+      {"normal_zero.yaml", base + kPose + "pattern_plane: {normal: [0, 0, 0], offset: 0}\n",
+       "pattern_plane.normal"},
+      {"plane_behind.yaml", base + kPose + "pattern_plane: {normal: [0, 0, 1], offset: -1.0}\n",
+       "pattern_plane"},
+      {"plane_nan.yaml", base + kPose + "pattern_plane: {normal: [0, 0, 1], offset: .nan}\n",
+       "pattern_plane.offset"},
+  };
+  for (const Case& c : cases) {
+    const std::string msg = loadError(c.name, c.yaml);
+    ASSERT_FALSE(msg.empty()) << c.name << " loaded";
+    EXPECT_NE(msg.find(c.name), std::string::npos) << msg;
+    EXPECT_NE(msg.find(c.field), std::string::npos) << c.name << ": " << msg;
+    EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
+  }
+  try {
+    loadObjectDefinition((testDir() / "does_not_exist.yaml").string());
+    FAIL();
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("does_not_exist.yaml: file not found"), std::string::npos);
+  }
+}
