@@ -1,0 +1,134 @@
+#include "robot/enon_model.h"
+
+#include <cmath>
+
+#include "core/error.h"
+#include "core/yaml.h"
+
+namespace refgrasp::robot {
+namespace {
+
+void checkLimits(const JointLimits& l, const std::string& what) {
+  check(std::isfinite(l.min_rad) && std::isfinite(l.max_rad) && l.min_rad <= l.max_rad, what,
+        "min_rad must not exceed max_rad");
+  check(std::isfinite(l.max_speed_radps) && l.max_speed_radps > 0, what,
+        "max_speed_radps must be positive");
+}
+
+// Sequence items have no dotted name: errors from YamlFile are re-thrown with the item's prefix.
+template <typename F>
+auto withPrefix(const std::string& prefix, F&& f) -> decltype(f()) {
+  try {
+    return f();
+  } catch (const ConfigError& e) {
+    const std::string head = e.file() + ": " + e.field() + ": ";
+    const std::string what = e.what();
+    const std::string problem = what.size() > head.size() ? what.substr(head.size()) : what;
+    throw ConfigError(e.file(), prefix + "." + e.field(), problem);
+  }
+}
+
+JointLimits readLimits(const YamlFile& f, const YAML::Node& node, const std::string& field) {
+  JointLimits l;
+  l.min_rad = f.number(node, field + ".min_rad");
+  l.max_rad = f.number(node, field + ".max_rad");
+  l.max_speed_radps = f.number(node, field + ".max_speed_radps");
+  if (l.min_rad > l.max_rad) f.fail(field, "min_rad > max_rad");
+  if (l.max_speed_radps <= 0) f.fail(field + ".max_speed_radps", "must be positive");
+  return l;
+}
+
+double positive(const YamlFile& f, const YAML::Node& node, const std::string& field) {
+  const double v = f.number(node, field);
+  if (v <= 0) f.fail(field, "must be positive");
+  return v;
+}
+
+double nonNegative(const YamlFile& f, const YAML::Node& node, const std::string& field) {
+  const double v = f.number(node, field);
+  if (v < 0) f.fail(field, "must not be negative");
+  return v;
+}
+
+}  // namespace
+
+void EnonModel::check() const {
+  refgrasp::check(control_period_s > 0 && std::isfinite(control_period_s), "enon",
+                  "control_period_s must be positive");
+  refgrasp::check(watchdog_period_s > 0 && std::isfinite(watchdog_period_s), "enon",
+                  "watchdog_period_s must be positive");
+  refgrasp::check(base.track_width_m > 0 && base.max_linear_speed_mps > 0 &&
+                      base.max_angular_speed_radps > 0 && base.max_wheel_speed_mps > 0,
+                  "enon.base", "sizes and speed limits must be positive");
+  checkLimits(head.pan, "enon.head.pan");
+  checkLimits(head.tilt, "enon.head.tilt");
+  refgrasp::check(head.bMp.isFinite() && head.tMc.isFinite(), "enon.head", "poses must be finite");
+  refgrasp::check(head.frame_rate_hz > 0, "enon.head", "frame_rate_hz must be positive");
+  refgrasp::check(!arm.joints.empty(), "enon.arm", "needs at least one joint");
+  for (const auto& j : arm.joints) checkLimits(j.limits, "enon.arm." + j.name);
+  refgrasp::check(arm.dls_damping >= 0, "enon.arm", "dls_damping must not be negative");
+  refgrasp::check(gripper.close_time_s >= 0 && gripper.open_time_s >= 0 &&
+                      gripper.grasp_tolerance_m > 0 && gripper.grasp_tolerance_rad > 0,
+                  "enon.gripper", "times must be >= 0 and tolerances positive");
+}
+
+EnonModel loadEnonModel(const std::string& path) {
+  const YamlFile f(path);
+  const YAML::Node& r = f.root();
+  EnonModel m;
+  m.path = path;
+  m.control_period_s = positive(f, r, "control_period_s");
+  m.watchdog_period_s = positive(f, r, "watchdog_period_s");
+
+  m.base.track_width_m = positive(f, r, "base.track_width_m");
+  m.base.max_linear_speed_mps = positive(f, r, "base.max_linear_speed_mps");
+  m.base.max_angular_speed_radps = positive(f, r, "base.max_angular_speed_radps");
+  m.base.max_wheel_speed_mps = positive(f, r, "base.max_wheel_speed_mps");
+
+  m.head.bMp = f.pose(r, "head.mount");
+  m.head.tilt_height_m = f.number(r, "head.tilt_height_m");
+  m.head.pan = readLimits(f, r, "head.pan");
+  m.head.tilt = readLimits(f, r, "head.tilt");
+  m.head.tMc = f.pose(r, "head.camera_mount");
+  m.head.frame_rate_hz = positive(f, r, "head.frame_rate_hz");
+  m.head.rig_path = f.resolve(f.string(r, "head.stereo_rig"));
+  m.head.rig = loadStereoRig(m.head.rig_path);
+
+  m.arm.side = f.string(r, "arm.side");
+  if (m.arm.side != "right" && m.arm.side != "left")
+    f.fail("arm.side", "expected right or left, got '" + m.arm.side + "'");
+  m.arm.bM0 = f.pose(r, "arm.mount");
+  m.arm.nMe = f.pose(r, "arm.tool");
+  m.arm.dls_damping = nonNegative(f, r, "arm.dls_damping");
+  const YAML::Node joints = f.get(r, "arm.joints");
+  if (!joints.IsDefined() || joints.IsNull()) f.fail("arm.joints", "missing (expected a list)");
+  if (!joints.IsSequence() || joints.size() == 0)
+    f.fail("arm.joints", "expected a non-empty list of DH rows");
+  for (size_t i = 0; i < joints.size(); ++i) {
+    const std::string prefix = "arm.joints[" + std::to_string(i) + "]";
+    const YAML::Node row = joints[i];
+    if (!row.IsMap()) f.fail(prefix, "expected a mapping with name, a_m, alpha_rad, d_m, ...");
+    DhJoint j = withPrefix(prefix, [&] {
+      DhJoint d;
+      d.name = f.string(row, "name");
+      d.a_m = f.number(row, "a_m");
+      d.alpha_rad = f.number(row, "alpha_rad");
+      d.d_m = f.number(row, "d_m");
+      d.theta_offset_rad = f.number(row, "theta_offset_rad");
+      d.limits = readLimits(f, row, "limits");
+      return d;
+    });
+    for (const auto& other : m.arm.joints)
+      if (other.name == j.name) f.fail(prefix + ".name", "duplicate joint name '" + j.name + "'");
+    m.arm.joints.push_back(j);
+  }
+
+  m.gripper.close_time_s = nonNegative(f, r, "gripper.close_time_s");
+  m.gripper.open_time_s = nonNegative(f, r, "gripper.open_time_s");
+  m.gripper.grasp_tolerance_m = positive(f, r, "gripper.grasp_tolerance_m");
+  m.gripper.grasp_tolerance_rad = positive(f, r, "gripper.grasp_tolerance_rad");
+  m.gripper.max_payload_kg = positive(f, r, "gripper.max_payload_kg");
+  return m;
+}
+
+}  // namespace refgrasp::robot

@@ -1,0 +1,248 @@
+#pragma once
+// Hardware abstraction for the enon, modelled on ros2_control (lifecycle configure / activate /
+// deactivate; read(time, period) then write(time, period) once per cycle; a status, never an
+// exception, inside the loop) and on ViSP's vpRobot::setVelocity(frame, twist).
+//
+// Layers:
+//   RobotHardware, StereoCameraHardware  device backends (simulated enon; later the real enon
+//                                        controller and the Bumblebee2 over libdc1394)
+//   Robot                                the aggregate a controller uses: Base, Head, Arm, Gripper,
+//                                        StereoCamera views, limits, arm DLS, the watchdog, stop().
+// Every error path commands zero velocity. Frames and units: robot/enon_model.h.
+#include <Eigen/Core>
+#include <memory>
+#include <opencv2/core.hpp>
+#include <optional>
+#include <string>
+
+#include "core/camera.h"
+#include "core/pose.h"
+#include "core/types.h"
+#include "robot/enon_model.h"
+#include "robot/kinematics.h"
+#include "robot/watchdog.h"
+
+namespace refgrasp::sim {
+struct Scenario;
+}
+
+namespace refgrasp::robot {
+
+enum class ReturnType { kOk, kError, kDeactivate };
+enum class Lifecycle { kUnconfigured, kInactive, kActive };
+const char* toString(ReturnType r);
+
+enum class HeadMode { kVelocity, kPosition };
+enum class GripperCommand { kNone, kOpen, kClose };
+enum class GripperPhase { kOpen, kClosing, kClosedEmpty, kHolding, kOpening };
+const char* toString(GripperPhase p);
+
+/// What is sent to the hardware each cycle (already limited by the Robot layer).
+struct RobotCommand {
+  double base_v_mps = 0, base_w_radps = 0;
+  HeadMode head_mode = HeadMode::kVelocity;
+  double pan = 0, tilt = 0;         ///< rad/s in velocity mode, rad in position mode
+  Eigen::VectorXd arm_qdot_radps;   ///< one per arm joint
+  GripperCommand gripper = GripperCommand::kNone;
+
+  /// Zero velocity everywhere (gripper left as it is).
+  static RobotCommand zero(int arm_dof);
+  bool isFinite() const;
+};
+
+/// Everything read back in one cycle; one flat record so a run can be logged and replayed.
+struct RobotState {
+  Seconds stamp = 0;
+  Pose wMb_odom;                    ///< base pose from odometry (carries odometry noise)
+  double base_v_mps = 0, base_w_radps = 0;
+  double pan_rad = 0, tilt_rad = 0, pan_radps = 0, tilt_radps = 0;
+  Eigen::VectorXd arm_q_rad, arm_qdot_radps;
+  GripperPhase gripper = GripperPhase::kOpen;
+  std::string held_object;          ///< name of the held object, "" when none
+  bool watchdog_tripped = false;
+
+  static std::string csvHeader(int arm_dof);
+  std::string csvRow() const;
+};
+
+struct StereoFrame {
+  cv::Mat left, right;  ///< CV_8UC1, same capture time
+  Seconds stamp = 0;    ///< capture time (exposure centre)
+  long index = 0;       ///< frame counter of the device
+};
+
+/// Device backend of base, head, arm and gripper.
+class RobotHardware {
+ public:
+  virtual ~RobotHardware() = default;
+  virtual ReturnType configure() = 0;
+  virtual ReturnType activate() = 0;
+  virtual ReturnType deactivate() = 0;
+  /// \param time current time; \param period time since the previous read.
+  /// Fills `state` with the joint / odometry state at `time`.
+  virtual ReturnType read(Seconds time, Seconds period, RobotState* state) = 0;
+  /// Sends `cmd`, valid from `time` (plus any device latency) for at most `valid_for_s`
+  /// (the watchdog period): a device never keeps moving on a stale command.
+  virtual ReturnType write(Seconds time, Seconds period, const RobotCommand& cmd,
+                           Seconds valid_for_s) = 0;
+};
+
+/// Device backend of the stereo camera.
+class StereoCameraHardware {
+ public:
+  virtual ~StereoCameraHardware() = default;
+  virtual const StereoRig& rig() const = 0;
+  /// The newest frame captured by `time` and not returned before; std::nullopt in `frame` when
+  /// there is none (not due yet, or dropped). kError only when the device fails.
+  virtual ReturnType grab(Seconds time, std::optional<StereoFrame>* frame) = 0;
+};
+
+/// Frame of an arm velocity command (vpRobot::setVelocity idiom). Reference point: e's origin.
+enum class ArmFrame {
+  kBase,        ///< bVe: linear and angular velocity expressed in the base frame
+  kEndEffector  ///< eVe: expressed in the gripper frame
+};
+
+class Robot;
+
+/// \brief Differential-drive base. Odometry pose wMb in the world frame.
+class Base {
+ public:
+  /// \param v_mps forward speed; \param w_radps turn rate (counter-clockwise seen from above).
+  /// Clipped to the base limits (robot/kinematics.h clipBaseVelocity).
+  void setVelocity(double v_mps, double w_radps);
+  Pose wMb() const;  ///< odometry
+  const BaseModel& model() const;
+
+ private:
+  friend class Robot;
+  explicit Base(Robot* r) : r_(r) {}
+  Robot* r_;
+};
+
+/// \brief Pan-tilt head carrying the stereo camera.
+class Head {
+ public:
+  /// \param pan_radps, tilt_radps joint rates, clipped to the speed limits.
+  void setVelocity(double pan_radps, double tilt_radps);
+  /// \param pan_rad, tilt_rad targets (clipped to the limits), reached at top speed.
+  void setPosition(double pan_rad, double tilt_rad);
+  double pan() const;
+  double tilt() const;
+  /// bMc: left camera optical frame in the base frame at the current joint state.
+  Pose bMc() const;
+  const HeadModel& model() const;
+
+ private:
+  friend class Robot;
+  explicit Head(Robot* r) : r_(r) {}
+  Robot* r_;
+};
+
+/// \brief Serial arm (DH chain). Cartesian commands go through damped least squares at write().
+class Arm {
+ public:
+  /// \param frame frame the twist is expressed in; \param v gripper-frame velocity (m/s, rad/s).
+  void setVelocity(ArmFrame frame, const Twist& v);
+  /// \param qdot_radps one rate per joint.
+  void setJointVelocity(const Eigen::VectorXd& qdot_radps);
+  const Eigen::VectorXd& q() const;
+  Pose bMe() const;  ///< gripper frame in the base frame at the current joint state
+  const ArmKinematics& kinematics() const;
+
+ private:
+  friend class Robot;
+  explicit Arm(Robot* r) : r_(r) {}
+  Robot* r_;
+};
+
+/// \brief One-DOF gripper.
+class Gripper {
+ public:
+  void open();
+  void close();
+  GripperPhase phase() const;
+  bool holding() const { return phase() == GripperPhase::kHolding; }
+
+ private:
+  friend class Robot;
+  explicit Gripper(Robot* r) : r_(r) {}
+  Robot* r_;
+};
+
+/// \brief The stereo camera on the head.
+class StereoCamera {
+ public:
+  const StereoRig& rig() const;
+  /// See StereoCameraHardware::grab; an error stops the robot.
+  ReturnType grab(Seconds time, std::optional<StereoFrame>* frame);
+
+ private:
+  friend class Robot;
+  explicit StereoCamera(Robot* r) : r_(r) {}
+  Robot* r_;
+};
+
+/// The aggregate a controller drives. Per cycle: read(t, dt); compute; set commands; write(t, dt).
+/// Commands are latched until write(). The watchdog: when no command was set for longer than
+/// model.watchdog_period_s, write() and read() send zero velocity to every actuator.
+class Robot {
+ public:
+  Robot(const EnonModel& model, std::unique_ptr<RobotHardware> hardware,
+        std::unique_ptr<StereoCameraHardware> camera);
+  ~Robot();
+  Robot(const Robot&) = delete;
+  Robot& operator=(const Robot&) = delete;
+
+  ReturnType configure();
+  ReturnType activate();
+  ReturnType deactivate();  ///< stops the robot first
+  Lifecycle lifecycle() const { return lifecycle_; }
+
+  ReturnType read(Seconds time, Seconds period);
+  ReturnType write(Seconds time, Seconds period);
+  /// Zero velocity everywhere, sent to the hardware now and latched as the command.
+  void stop();
+
+  const RobotState& state() const { return state_; }
+  const RobotCommand& lastCommand() const { return sent_; }
+  const EnonModel& model() const { return model_; }
+  Base& base() { return base_; }
+  Head& head() { return head_; }
+  Arm& arm() { return arm_; }
+  Gripper& gripper() { return gripper_; }
+  StereoCamera& camera() { return camera_; }
+  RobotHardware& hardware() { return *hw_; }
+
+ private:
+  friend class Base;
+  friend class Head;
+  friend class Arm;
+  friend class Gripper;
+  friend class StereoCamera;
+  void commanded() { fresh_ = true; }
+
+  EnonModel model_;
+  ArmKinematics kin_;
+  std::unique_ptr<RobotHardware> hw_;
+  std::unique_ptr<StereoCameraHardware> cam_;
+  Lifecycle lifecycle_ = Lifecycle::kUnconfigured;
+  Watchdog watchdog_;
+  RobotCommand pending_, sent_;
+  std::optional<std::pair<ArmFrame, Twist>> arm_twist_;  ///< Cartesian arm command, if any
+  RobotState state_;
+  Seconds last_time_ = 0, last_period_ = 0;
+  bool fresh_ = false;
+  Base base_{this};
+  Head head_{this};
+  Arm arm_{this};
+  Gripper gripper_{this};
+  StereoCamera camera_{this};
+};
+
+/// Builds a Robot on a backend chosen by configuration. backends: "sim" (needs `scenario`).
+/// Throws ConfigError naming the model file on an unknown backend or a missing scenario.
+std::unique_ptr<Robot> makeRobot(const EnonModel& model, const std::string& backend,
+                                 const sim::Scenario* scenario = nullptr);
+
+}  // namespace refgrasp::robot
