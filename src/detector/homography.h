@@ -39,7 +39,7 @@ Eigen::Vector2d applyHomography(const Eigen::Matrix3d& H, const Eigen::Vector2d&
 
 /// True when H is finite, well conditioned and maps the polygon (reference px, >= 3 vertices,
 /// convex, any orientation) to a convex polygon with the same orientation (not flipped), all in
-/// front (positive homogeneous w), with image area >= min_area_px2.
+/// front of its vanishing line (one sign of homogeneous w), with image area >= min_area_px2.
 bool homographyPlausible(const Eigen::Matrix3d& H, const std::vector<Eigen::Vector2d>& polygon,
                          double min_area_px2 = 16.0);
 

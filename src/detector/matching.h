@@ -32,6 +32,9 @@ struct MatchOptions {
   int min_inliers = 12;                ///< homography inliers needed to accept an instance
   double ransac_reproj_px = 3.0;
   int max_instances = 1;               ///< disjoint instances reported per object
+  /// Local matches farther than this in descriptor space are never accepted (OpenCV SIFT
+  /// descriptors have L2 norm ~512; unrelated features are typically 350-450 apart).
+  double max_descriptor_distance = 300;
   uint64_t seed = 0;
   /// Throws std::invalid_argument on nonsense.
   void check() const;
@@ -42,11 +45,12 @@ struct MatchOptions {
 struct ReferenceIndex {
   Features features;                          ///< kept reference features (indices used below)
   std::vector<Eigen::Vector2d> polygon_px;    ///< pattern polygon, reference px
+  std::vector<Eigen::Vector2d> hull_px;       ///< its convex hull (used for plausibility/overlap)
   Eigen::Vector2d centre_px = Eigen::Vector2d::Zero();  ///< pattern centre c_r (polygon centroid)
   double diagonal_px = 0;                     ///< diagonal of the polygon's bounding box
-  std::vector<std::vector<int>> neighbours;   ///< per feature: nearest features (spatial), self first
-  cv::Mat descriptors_u8;                     ///< CV_8U copy (OpenCV SIFT values are integers)
-  std::vector<int> descriptor_norm2;          ///< squared L2 norms of descriptors_u8 rows
+  std::vector<std::vector<int>> neighbours;   ///< per feature: nearest features (reference px), self first
+  cv::Mat descriptors_s16;                    ///< CV_16S copy (OpenCV SIFT values are integers 0..255)
+  std::vector<int> descriptor_norm2;          ///< squared L2 norms of descriptors_s16 rows
 };
 
 /// Keeps features inside the polygon (>= 3 vertices; empty = whole image), then the strongest

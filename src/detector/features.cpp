@@ -1,0 +1,138 @@
+#include "detector/features.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numeric>
+#include <opencv2/features2d.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "core/error.h"
+
+namespace refgrasp::detector {
+
+void SiftOptions::check() const {
+  refgrasp::check(max_features >= 0, "SiftOptions.max_features", "must be >= 0");
+  refgrasp::check(octave_layers >= 1 && octave_layers <= 10, "SiftOptions.octave_layers",
+                  "must be in [1, 10]");
+  refgrasp::check(std::isfinite(contrast_threshold) && contrast_threshold > 0,
+                  "SiftOptions.contrast_threshold", "must be > 0");
+  refgrasp::check(std::isfinite(edge_threshold) && edge_threshold > 1,
+                  "SiftOptions.edge_threshold", "must be > 1");
+  refgrasp::check(std::isfinite(sigma) && sigma > 0.1 && sigma < 10, "SiftOptions.sigma",
+                  "must be in (0.1, 10)");
+}
+
+Features extractSift(const cv::Mat& image, const SiftOptions& opt) {
+  opt.check();
+  refgrasp::check(!image.empty(), "extractSift", "empty image");
+  cv::Mat gray;
+  if (image.channels() == 3) {
+    cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
+  } else if (image.channels() == 4) {
+    cv::cvtColor(image, gray, cv::COLOR_BGRA2GRAY);
+  } else {
+    gray = image;
+  }
+  if (gray.depth() != CV_8U) {
+    cv::Mat g8;
+    gray.convertTo(g8, CV_8U);
+    gray = g8;
+  }
+
+  // OpenCV 4.6 always doubles the image first (firstOctave = -1). Without up-sampling we feed it
+  // the half-size image, so its first octave sees the input's resolution.
+  cv::Mat work = gray;
+  if (!opt.upsample) cv::resize(gray, work, cv::Size(gray.cols / 2, gray.rows / 2), 0, 0, cv::INTER_AREA);
+
+  Features f;
+  f.image_size = gray.size();
+  if (work.cols < 8 || work.rows < 8) {
+    f.descriptors.create(0, 128, CV_32F);
+    return f;
+  }
+  auto sift = cv::SIFT::create(opt.max_features, opt.octave_layers, opt.contrast_threshold,
+                               opt.edge_threshold, opt.sigma);
+  std::vector<cv::KeyPoint> kps;
+  cv::Mat desc;
+  sift->detectAndCompute(work, cv::noArray(), kps, desc);
+
+  // Strongest first; ties broken by position so the order never depends on threading.
+  std::vector<int> order(kps.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](int a, int b) {
+    const cv::KeyPoint &ka = kps[a], &kb = kps[b];
+    if (ka.response != kb.response) return ka.response > kb.response;
+    if (ka.pt.y != kb.pt.y) return ka.pt.y < kb.pt.y;
+    if (ka.pt.x != kb.pt.x) return ka.pt.x < kb.pt.x;
+    if (ka.size != kb.size) return ka.size < kb.size;
+    return ka.angle < kb.angle;
+  });
+  if (opt.max_features > 0 && static_cast<int>(order.size()) > opt.max_features)
+    order.resize(opt.max_features);
+
+  f.keypoints.reserve(order.size());
+  f.descriptors.create(static_cast<int>(order.size()), 128, CV_32F);
+  for (size_t i = 0; i < order.size(); ++i) {
+    cv::KeyPoint kp = kps[order[i]];
+    // The internal 2x up-sampling (pixel-centre aligned) puts input pixel x at 2x + 0.5 in the
+    // doubled image; OpenCV halves that, leaving a +0.25 px bias, removed here.
+    kp.pt.x -= 0.25f;
+    kp.pt.y -= 0.25f;
+    if (!opt.upsample) {  // half-size pixel h -> input pixel 2h + 0.5 (pixel-centre aligned)
+      kp.pt.x = 2.f * kp.pt.x + 0.5f;
+      kp.pt.y = 2.f * kp.pt.y + 0.5f;
+      kp.size *= 2.f;
+    }
+    f.keypoints.push_back(kp);
+    desc.row(order[i]).copyTo(f.descriptors.row(static_cast<int>(i)));
+  }
+  return f;
+}
+
+GridIndex::GridIndex(const std::vector<cv::KeyPoint>& kps, cv::Size image_size, int cell_px)
+    : cell_px_(std::max(1, cell_px)) {
+  cols_ = std::max(1, (image_size.width + cell_px_ - 1) / cell_px_);
+  rows_ = std::max(1, (image_size.height + cell_px_ - 1) / cell_px_);
+  const int n = static_cast<int>(kps.size());
+  x_.resize(n);
+  y_.resize(n);
+  std::vector<int> cell(n);
+  cell_start_.assign(cols_ * rows_ + 1, 0);
+  for (int i = 0; i < n; ++i) {
+    x_[i] = kps[i].pt.x;
+    y_[i] = kps[i].pt.y;
+    const int cx = std::clamp(static_cast<int>(std::floor(x_[i] / cell_px_)), 0, cols_ - 1);
+    const int cy = std::clamp(static_cast<int>(std::floor(y_[i] / cell_px_)), 0, rows_ - 1);
+    cell[i] = cy * cols_ + cx;
+    ++cell_start_[cell[i] + 1];
+  }
+  for (int c = 0; c < cols_ * rows_; ++c) cell_start_[c + 1] += cell_start_[c];
+  order_.resize(n);
+  std::vector<int> fill(cell_start_.begin(), cell_start_.end() - 1);
+  for (int i = 0; i < n; ++i) order_[fill[cell[i]]++] = i;
+}
+
+void GridIndex::radiusSearch(const Eigen::Vector2d& centre, double radius_px,
+                             std::vector<int>* out) const {
+  out->clear();
+  if (order_.empty() || !(radius_px >= 0) || !centre.allFinite()) return;
+  // Border cells also hold clamped out-of-image points, so clamp the cell range, not the query.
+  auto cellOf = [&](double v, int n) {
+    return std::clamp(static_cast<int>(std::floor(v / cell_px_)), 0, n - 1);
+  };
+  const int x0 = cellOf(centre.x() - radius_px, cols_), x1 = cellOf(centre.x() + radius_px, cols_);
+  const int y0 = cellOf(centre.y() - radius_px, rows_), y1 = cellOf(centre.y() + radius_px, rows_);
+  const double r2 = radius_px * radius_px;
+  for (int cy = y0; cy <= y1; ++cy) {
+    for (int cx = x0; cx <= x1; ++cx) {
+      const int c = cy * cols_ + cx;
+      for (int k = cell_start_[c]; k < cell_start_[c + 1]; ++k) {
+        const int i = order_[k];
+        const double dx = x_[i] - centre.x(), dy = y_[i] - centre.y();
+        if (dx * dx + dy * dy <= r2) out->push_back(i);
+      }
+    }
+  }
+}
+
+}  // namespace refgrasp::detector

@@ -1,1 +1,0 @@
-// placeholder until detector sources land
