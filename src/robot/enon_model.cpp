@@ -92,7 +92,11 @@ EnonModel loadEnonModel(const std::string& path) {
   m.head.tMc = f.pose(r, "head.camera_mount");
   m.head.frame_rate_hz = positive(f, r, "head.frame_rate_hz");
   m.head.rig_path = f.resolve(f.string(r, "head.stereo_rig"));
-  m.head.rig = loadStereoRig(m.head.rig_path);
+  try {
+    m.head.rig = loadStereoRig(m.head.rig_path);
+  } catch (const ConfigError& e) {
+    f.fail("head.stereo_rig", e.what());
+  }
 
   m.arm.side = f.string(r, "arm.side");
   if (m.arm.side != "right" && m.arm.side != "left")

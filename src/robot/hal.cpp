@@ -1,5 +1,6 @@
 #include "robot/hal.h"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -233,7 +234,9 @@ ReturnType Robot::write(Seconds time, Seconds period) {
   cmd.arm_qdot_radps = limitJointVelocity(model_.arm, state_.arm_q_rad, cmd.arm_qdot_radps,
                                           period > 0 ? period : model_.control_period_s);
   sent_ = cmd;
-  const ReturnType r = hw_->write(time, period, cmd, model_.watchdog_period_s);
+  // The device drops the command itself at the watchdog deadline, even if write() stops coming.
+  const Seconds valid_for = std::max(0.0, watchdog_.deadline() - time);
+  const ReturnType r = hw_->write(time, period, cmd, valid_for);
   if (r != ReturnType::kOk) {
     stop();
     return r;
