@@ -161,7 +161,8 @@ PoseResult refinePoseLM(const std::vector<Eigen::Vector3d>& points_o,
   if (!front) return res;
   double lambda = 1e-3;
   int it = 0;
-  for (; it < iterations; ++it) {
+  bool converged = false;
+  for (; it < iterations && !converged; ++it) {
     Eigen::Matrix<double, 6, 6> A = Eigen::Matrix<double, 6, 6>::Zero();
     Eigen::Matrix<double, 6, 1> g = Eigen::Matrix<double, 6, 1>::Zero();
     for (size_t i = 0; i < n; ++i) {
@@ -188,7 +189,7 @@ PoseResult refinePoseLM(const std::vector<Eigen::Vector3d>& points_o,
         P = Pn;
         c = cn;
         lambda = std::max(lambda * 0.3, 1e-9);
-        if (rel < 1e-12 && d.norm() < 1e-12) it = iterations;  // converged
+        converged = rel < 1e-15 || d.norm() < 1e-14;
       } else {
         lambda *= 10;
       }
@@ -204,7 +205,7 @@ PoseResult refinePoseLM(const std::vector<Eigen::Vector3d>& points_o,
   res.ok = P.isFinite();
   res.cMo = P;
   res.rms_px = std::sqrt(sq / n);
-  res.iterations = std::min(it, iterations);
+  res.iterations = it;
   return res;
 }
 
