@@ -146,3 +146,18 @@ TEST_F(ObjectFile, BadInputsGiveOneLineErrorsNamingFileAndField) {
     EXPECT_NE(std::string(e.what()).find("does_not_exist.yaml: file not found"), std::string::npos);
   }
 }
+
+TEST(ShippedObjects, EveryDefinitionLoadsWith3dCorners) {
+  int n = 0;
+  for (const auto& e : fs::directory_iterator(fs::path(REFGRASP_SOURCE_DIR) / "config/objects")) {
+    if (e.path().extension() != ".yaml" || e.path().stem().string().find("_camera") != std::string::npos)
+      continue;
+    const ObjectModel m = loadObjectDefinition(e.path().string());
+    ++n;
+    EXPECT_EQ(m.name, e.path().stem().string());
+    ASSERT_TRUE(m.has3d()) << e.path();
+    // Shipped objects are 0.2 m wide textures: corners 0.2 m apart in x.
+    EXPECT_NEAR((m.target->corners_o[1] - m.target->corners_o[0]).norm(), 0.2, 1e-9) << e.path();
+  }
+  EXPECT_GE(n, 5);
+}
