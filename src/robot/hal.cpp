@@ -119,6 +119,8 @@ void Gripper::close() {
 GripperPhase Gripper::phase() const { return r_->state_.gripper; }
 
 const StereoRig& StereoCamera::rig() const { return r_->cam_->rig(); }
+const Pose& StereoCamera::tMc() const { return r_->model_.head.tMc; }
+Pose StereoCamera::bMc() const { return r_->head_.bMc(); }
 ReturnType StereoCamera::grab(Seconds time, std::optional<StereoFrame>* frame) {
   frame->reset();
   if (r_->lifecycle_ != Lifecycle::kActive) return ReturnType::kError;
@@ -213,7 +215,7 @@ ReturnType Robot::write(Seconds time, Seconds period) {
   RobotCommand cmd = pending_;
   pending_.gripper = GripperCommand::kNone;  // one-shot
   if (watchdog_.expired(time)) {
-    if (!state_.watchdog_tripped) state_.watchdog_tripped = true;
+    state_.watchdog_tripped = true;
     const GripperCommand g = cmd.gripper;
     cmd = RobotCommand::zero(kin_.dof());
     cmd.gripper = g;

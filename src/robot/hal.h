@@ -174,6 +174,10 @@ class Gripper {
 class StereoCamera {
  public:
   const StereoRig& rig() const;
+  /// Head-to-camera transform from config: left optical frame in the tilt frame.
+  const Pose& tMc() const;
+  /// bMc: left camera in the base frame at the current head joint state.
+  Pose bMc() const;
   /// See StereoCameraHardware::grab; an error stops the robot.
   ReturnType grab(Seconds time, std::optional<StereoFrame>* frame);
 

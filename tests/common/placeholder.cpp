@@ -1,1 +1,0 @@
-// placeholder until shared test fixtures land
