@@ -1,0 +1,27 @@
+#pragma once
+// Camera image degradations applied after rendering: motion blur (optics), brightness (exposure,
+// gain), additive Gaussian noise (sensor), in that order, then rounding to 8 bits.
+#include <opencv2/core.hpp>
+#include <random>
+
+namespace refgrasp::sim {
+
+struct Degradation {
+  double noise_sigma = 0;            ///< additive Gaussian noise, gray levels (standard deviation)
+  double motion_blur_px = 0;         ///< length of a linear blur kernel, pixels (0: none)
+  double motion_blur_angle_rad = 0;  ///< blur direction in the image: 0 along +u, pi/2 along +v
+  double brightness_gain = 1;        ///< out = gain * in + offset
+  double brightness_offset = 0;      ///< gray levels
+  /// Throws std::invalid_argument on negative or non-finite values, or a non-positive gain.
+  void check() const;
+};
+
+/// Degrades a CV_8UC1 image in place. Deterministic given the state of `rng` (draws one number
+/// from it when noise_sigma > 0).
+void degrade(cv::Mat& img, const Degradation& d, std::mt19937_64& rng);
+
+/// Normalised CV_32F kernel of a straight blur of `length_px` along `angle_rad`, centred (a
+/// symmetric kernel: blurring does not shift the image). 1x1 identity for length < 0.5 px.
+cv::Mat motionBlurKernel(double length_px, double angle_rad);
+
+}  // namespace refgrasp::sim

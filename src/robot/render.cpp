@@ -1,0 +1,345 @@
+#include "robot/render.h"
+
+#include <algorithm>
+#include <cmath>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <numeric>
+#include <opencv2/imgproc.hpp>
+#include <stdexcept>
+
+#include "core/error.h"
+
+namespace refgrasp::sim {
+
+void RenderOptions::check() const {
+  refgrasp::check(std::isfinite(near_m) && near_m > 0, "RenderOptions.near_m", "must be positive");
+  refgrasp::check(background_gray >= 0 && background_gray <= 255, "RenderOptions.background_gray",
+                  "must be in [0, 255]");
+}
+
+namespace {
+
+using Poly2 = std::vector<Eigen::Vector2d>;
+
+std::array<Eigen::Vector3d, 4> planeCorners(const TexturedPlane& p) {
+  const double w = p.width_m / 2, h = p.height_m / 2;
+  return {Eigen::Vector3d(-w, -h, 0), Eigen::Vector3d(w, -h, 0), Eigen::Vector3d(w, h, 0),
+          Eigen::Vector3d(-w, h, 0)};
+}
+
+void checkPlane(const TexturedPlane& p) {
+  refgrasp::check(!p.texture.empty() && p.texture.type() == CV_8UC1, "TexturedPlane.texture",
+                  "must be a non-empty CV_8UC1 image");
+  refgrasp::check(std::isfinite(p.width_m) && std::isfinite(p.height_m) && p.width_m > 0 &&
+                      p.height_m > 0,
+                  "TexturedPlane", "width_m and height_m must be positive");
+  refgrasp::check(p.cMp.isFinite(), "TexturedPlane.cMp", "must be finite");
+}
+
+Eigen::Matrix3d textureToImageK(const Eigen::Matrix3d& K, const TexturedPlane& p) {
+  const double W = p.texture.cols, H = p.texture.rows;
+  const double sx = p.width_m / W, sy = p.height_m / H;
+  Eigen::Matrix3d A;  // texture pixel -> plane (x, y, 1)
+  A << sx, 0, -(W - 1) / 2 * sx, 0, sy, -(H - 1) / 2 * sy, 0, 0, 1;
+  Eigen::Matrix3d Rt;
+  Rt << p.cMp.R.col(0), p.cMp.R.col(1), p.cMp.t;
+  return K * Rt * A;
+}
+
+// Sutherland-Hodgman: keeps the part of a convex polygon where signedDist >= 0.
+template <class V, class F>
+std::vector<V> clip(const std::vector<V>& in, F signedDist) {
+  std::vector<V> out;
+  for (size_t i = 0; i < in.size(); ++i) {
+    const V& a = in[i];
+    const V& b = in[(i + 1) % in.size()];
+    const double da = signedDist(a), db = signedDist(b);
+    if (da >= 0) out.push_back(a);
+    if ((da >= 0) != (db >= 0)) out.push_back(a + (b - a) * (da / (da - db)));
+  }
+  return out;
+}
+
+// Gaussian pyramids of textures, keyed by the pixel buffer. The entry holds a reference to the
+// texture, so a buffer cannot be freed and reused by another image while it is cached.
+class PyramidCache {
+ public:
+  std::vector<cv::Mat> get(const cv::Mat& tex, int levels) {
+    std::lock_guard<std::mutex> lock(mu_);
+    for (auto& e : entries_)
+      if (e.tex.data == tex.data && e.tex.size() == tex.size() && e.tex.step == tex.step) {
+        while (static_cast<int>(e.levels.size()) <= levels) {
+          cv::Mat down;
+          cv::pyrDown(e.levels.back(), down);
+          e.levels.push_back(down);
+        }
+        return e.levels;
+      }
+    if (entries_.size() >= kMaxEntries) entries_.pop_front();
+    Entry e{tex, {tex}};
+    while (static_cast<int>(e.levels.size()) <= levels) {
+      cv::Mat down;
+      cv::pyrDown(e.levels.back(), down);
+      e.levels.push_back(down);
+    }
+    entries_.push_back(e);
+    return e.levels;
+  }
+
+ private:
+  struct Entry {
+    cv::Mat tex;
+    std::vector<cv::Mat> levels;
+  };
+  static constexpr size_t kMaxEntries = 128;
+  std::mutex mu_;
+  std::deque<Entry> entries_;
+};
+
+PyramidCache& pyramidCache() {
+  static PyramidCache cache;
+  return cache;
+}
+
+// Ideal canvas covering every sample a distorted image needs, and the remap into the output.
+struct DistortionMap {
+  Intrinsics cam;
+  int ox = 0, oy = 0;  // canvas pixel = ideal pixel - (ox, oy)
+  cv::Size canvas;
+  cv::Mat map1, map2;  // fixed-point maps for cv::remap
+};
+
+bool sameIntrinsics(const Intrinsics& a, const Intrinsics& b) {
+  return a.width == b.width && a.height == b.height && a.fx == b.fx && a.fy == b.fy &&
+         a.cx == b.cx && a.cy == b.cy && a.dist == b.dist;
+}
+
+std::shared_ptr<const DistortionMap> distortionMap(const Intrinsics& cam) {
+  static std::mutex mu;
+  static std::deque<std::shared_ptr<const DistortionMap>> cache;
+  {
+    std::lock_guard<std::mutex> lock(mu);
+    for (const auto& m : cache)
+      if (sameIntrinsics(m->cam, cam)) return m;
+  }
+  auto m = std::make_shared<DistortionMap>();
+  m->cam = cam;
+  cv::Mat xy(cam.height, cam.width, CV_32FC2);
+  double minx = 0, miny = 0, maxx = cam.width - 1, maxy = cam.height - 1;
+  for (int v = 0; v < cam.height; ++v)
+    for (int u = 0; u < cam.width; ++u) {
+      const Eigen::Vector2d p = cam.undistortPixel(Eigen::Vector2d(u, v));
+      xy.at<cv::Vec2f>(v, u) = cv::Vec2f(static_cast<float>(p.x()), static_cast<float>(p.y()));
+      minx = std::min(minx, p.x());
+      maxx = std::max(maxx, p.x());
+      miny = std::min(miny, p.y());
+      maxy = std::max(maxy, p.y());
+    }
+  // Strong distortion can ask for huge canvases; beyond 3x the image size samples replicate.
+  minx = std::max(minx, -1.0 * cam.width);
+  miny = std::max(miny, -1.0 * cam.height);
+  maxx = std::min(maxx, 2.0 * cam.width);
+  maxy = std::min(maxy, 2.0 * cam.height);
+  m->ox = static_cast<int>(std::floor(minx)) - 2;
+  m->oy = static_cast<int>(std::floor(miny)) - 2;
+  m->canvas = cv::Size(static_cast<int>(std::ceil(maxx)) + 3 - m->ox,
+                       static_cast<int>(std::ceil(maxy)) + 3 - m->oy);
+  xy -= cv::Scalar(m->ox, m->oy);
+  cv::convertMaps(xy, cv::noArray(), m->map1, m->map2, CV_16SC2);
+  std::lock_guard<std::mutex> lock(mu);
+  if (cache.size() >= 8) cache.pop_front();
+  cache.push_back(m);
+  return m;
+}
+
+// Coverage (0..255) of a convex polygon over the pixels of `roi`. Anti-aliased: the product over
+// edges of clamp(0.5 + signed distance of the pixel centre to the edge): exact area for a single
+// axis-aligned edge, unbiased for oblique ones. Otherwise a pixel is in when its centre is.
+cv::Mat coverageMask(const Poly2& poly, const cv::Rect& roi, bool antialias) {
+  double area2 = 0;
+  for (size_t i = 0; i < poly.size(); ++i) {
+    const auto& a = poly[i];
+    const auto& b = poly[(i + 1) % poly.size()];
+    area2 += a.x() * b.y() - a.y() * b.x();
+  }
+  const double orient = area2 >= 0 ? 1.0 : -1.0;
+  struct Edge {
+    double nx, ny, c;  // signed distance = nx * x + ny * y + c, > 0 inside
+  };
+  std::vector<Edge> edges;
+  for (size_t i = 0; i < poly.size(); ++i) {
+    const Eigen::Vector2d a = poly[i] - Eigen::Vector2d(roi.x, roi.y);
+    const Eigen::Vector2d b = poly[(i + 1) % poly.size()] - Eigen::Vector2d(roi.x, roi.y);
+    const Eigen::Vector2d d = b - a;
+    const double len = d.norm();
+    if (len < 1e-12) continue;
+    const double nx = -orient * d.y() / len, ny = orient * d.x() / len;
+    edges.push_back({nx, ny, -(nx * a.x() + ny * a.y())});
+  }
+  cv::Mat mask(roi.size(), CV_8U);
+  for (int y = 0; y < roi.height; ++y) {
+    uchar* m = mask.ptr<uchar>(y);
+    for (int x = 0; x < roi.width; ++x) {
+      double cov = 1;
+      for (const Edge& e : edges) {
+        const double dist = e.nx * x + e.ny * y + e.c;
+        if (antialias) {
+          if (dist < 0.5) cov *= std::max(0.0, 0.5 + dist);
+        } else if (dist < 0) {
+          cov = 0;
+        }
+        if (cov == 0) break;
+      }
+      m[x] = static_cast<uchar>(std::lround(cov * 255));
+    }
+  }
+  return mask;
+}
+
+// Draws one plane into `canvas` (an ideal pinhole image with intrinsic matrix K).
+void drawPlane(cv::Mat& canvas, const Eigen::Matrix3d& K, const TexturedPlane& p,
+               const RenderOptions& opt) {
+  const Pose& cMp = p.cMp;
+  // Visible side: the camera centre lies on the plane's -z side, i.e. n . t > 0.
+  if (cMp.R.col(2).dot(cMp.t) <= 0) return;
+
+  std::vector<Eigen::Vector3d> poly3;
+  for (const auto& c : planeCorners(p)) poly3.push_back(cMp * c);
+  poly3 = clip(poly3, [&](const Eigen::Vector3d& X) { return X.z() - opt.near_m; });
+  if (poly3.size() < 3) return;
+
+  Poly2 poly;
+  for (const auto& X : poly3) poly.push_back((K * X).hnormalized());
+  // Guard band: keeps drawing coordinates small when a plane reaches far outside the view.
+  const double gx0 = -2, gy0 = -2, gx1 = canvas.cols + 1, gy1 = canvas.rows + 1;
+  poly = clip(poly, [&](const Eigen::Vector2d& q) { return q.x() - gx0; });
+  poly = clip(poly, [&](const Eigen::Vector2d& q) { return gx1 - q.x(); });
+  poly = clip(poly, [&](const Eigen::Vector2d& q) { return q.y() - gy0; });
+  poly = clip(poly, [&](const Eigen::Vector2d& q) { return gy1 - q.y(); });
+  if (poly.size() < 3) return;
+
+  double minx = 1e30, miny = 1e30, maxx = -1e30, maxy = -1e30;
+  Eigen::Vector2d centroid = Eigen::Vector2d::Zero();
+  for (const auto& q : poly) {
+    minx = std::min(minx, q.x());
+    maxx = std::max(maxx, q.x());
+    miny = std::min(miny, q.y());
+    maxy = std::max(maxy, q.y());
+    centroid += q / static_cast<double>(poly.size());
+  }
+  const cv::Rect roi = cv::Rect(cv::Point(static_cast<int>(std::floor(minx)) - 1,
+                                          static_cast<int>(std::floor(miny)) - 1),
+                                cv::Point(static_cast<int>(std::ceil(maxx)) + 2,
+                                          static_cast<int>(std::ceil(maxy)) + 2)) &
+                       cv::Rect(0, 0, canvas.cols, canvas.rows);
+  if (roi.empty()) return;
+
+  const Eigen::Matrix3d H = textureToImageK(K, p);
+  const Eigen::Matrix3d Hinv = H.inverse();
+  // Texture pixels per image pixel at the centroid: sqrt of the Jacobian determinant of H^-1.
+  int level = 0;
+  if (opt.mipmap) {
+    const Eigen::Vector3d x = Hinv * centroid.homogeneous();
+    const double w = x.z();
+    Eigen::Matrix2d J;
+    for (int r = 0; r < 2; ++r)
+      for (int c = 0; c < 2; ++c) J(r, c) = (Hinv(r, c) - x(r) / w * Hinv(2, c)) / w;
+    const double minification = std::sqrt(std::abs(J.determinant()));
+    const int max_level =
+        static_cast<int>(std::floor(std::log2(std::min(p.texture.cols, p.texture.rows) / 8.0)));
+    if (minification >= 2)
+      level = std::clamp(static_cast<int>(std::floor(std::log2(minification))), 0,
+                         std::max(0, max_level));
+  }
+  const cv::Mat tex = level == 0 ? p.texture : pyramidCache().get(p.texture, level)[level];
+  // pyrDown centres level-L pixel i on level-0 pixel 2^L i.
+  const double s = std::ldexp(1.0, level);
+  Eigen::Matrix3d roiFromTex = H * Eigen::DiagonalMatrix<double, 3>(s, s, 1);
+  roiFromTex.row(0) -= roi.x * roiFromTex.row(2);
+  roiFromTex.row(1) -= roi.y * roiFromTex.row(2);
+  const Eigen::Matrix3d texFromRoi = roiFromTex.inverse();
+  cv::Mat M(3, 3, CV_64F);
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) M.at<double>(r, c) = texFromRoi(r, c);
+  cv::Mat warped;
+  cv::warpPerspective(tex, warped, M, roi.size(), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP,
+                      cv::BORDER_REPLICATE);
+
+  const cv::Mat mask = coverageMask(poly, roi, opt.antialias_edges);
+
+  cv::Mat dst = canvas(roi);
+  for (int y = 0; y < roi.height; ++y) {
+    const uchar* a = mask.ptr<uchar>(y);
+    const uchar* src = warped.ptr<uchar>(y);
+    uchar* d = dst.ptr<uchar>(y);
+    for (int x = 0; x < roi.width; ++x) {
+      if (a[x] == 255)
+        d[x] = src[x];
+      else if (a[x] != 0)
+        d[x] = static_cast<uchar>((src[x] * a[x] + d[x] * (255 - a[x]) + 127) / 255);
+    }
+  }
+}
+
+}  // namespace
+
+Eigen::Matrix3d textureToImage(const Intrinsics& cam, const TexturedPlane& plane) {
+  return textureToImageK(cam.K(), plane);
+}
+
+std::array<Eigen::Vector2d, 4> projectPlaneCorners(const Intrinsics& cam, const TexturedPlane& plane) {
+  std::array<Eigen::Vector2d, 4> out;
+  const auto corners = planeCorners(plane);
+  for (size_t i = 0; i < 4; ++i) out[i] = cam.project(plane.cMp * corners[i]);
+  return out;
+}
+
+cv::Mat renderView(const Intrinsics& cam, const std::vector<TexturedPlane>& planes,
+                   const cv::Mat& background, const RenderOptions& opt) {
+  cam.check();
+  opt.check();
+  for (const auto& p : planes) checkPlane(p);
+
+  std::shared_ptr<const DistortionMap> dmap;
+  Eigen::Matrix3d K = cam.K();
+  cv::Size canvas_size(cam.width, cam.height);
+  if (cam.hasDistortion()) {
+    dmap = distortionMap(cam);
+    canvas_size = dmap->canvas;
+    K(0, 2) -= dmap->ox;
+    K(1, 2) -= dmap->oy;
+  }
+
+  cv::Mat canvas;
+  if (background.empty()) {
+    canvas = cv::Mat(canvas_size, CV_8U, cv::Scalar(opt.background_gray));
+  } else {
+    cv::Mat bg = background;
+    if (bg.type() == CV_8UC3)
+      cv::cvtColor(background, bg, cv::COLOR_BGR2GRAY);
+    else if (bg.type() == CV_8UC4)
+      cv::cvtColor(background, bg, cv::COLOR_BGRA2GRAY);
+    refgrasp::check(bg.type() == CV_8UC1, "renderView", "background must be an 8-bit image");
+    if (bg.size() == canvas_size)
+      canvas = bg.clone();
+    else
+      cv::resize(bg, canvas, canvas_size, 0, 0,
+                 bg.cols > canvas_size.width ? cv::INTER_AREA : cv::INTER_LINEAR);
+  }
+
+  std::vector<size_t> order(planes.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+    return planes[a].cMp.t.norm() > planes[b].cMp.t.norm();
+  });
+  for (size_t i : order) drawPlane(canvas, K, planes[i], opt);
+
+  if (!dmap) return canvas;
+  cv::Mat out;
+  cv::remap(canvas, out, dmap->map1, dmap->map2, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  return out;
+}
+
+}  // namespace refgrasp::sim

@@ -1,0 +1,51 @@
+#pragma once
+// Exact-perspective renderer of textured rectangles, for the synthetic camera and for tests.
+//
+// Planar-object convention (DEVELOPERS.md): the plane frame p has its origin at the texture centre,
+// x along texture columns, y along rows, z = 0 on the plane; the texture is visible from the -z
+// side. Texture pixel (u,v) (pixel centres, 0-based) sits at ((u-(W-1)/2)*sx, (v-(H-1)/2)*sy, 0)
+// with sx = width_m / W, sy = height_m / H; the outer texture edges are at x = ±width_m/2,
+// y = ±height_m/2. Images are CV_8UC1; pixel centre of the top-left pixel is (0,0).
+#include <Eigen/Core>
+#include <array>
+#include <opencv2/core.hpp>
+#include <vector>
+
+#include "core/camera.h"
+#include "core/pose.h"
+
+namespace refgrasp::sim {
+
+struct TexturedPlane {
+  cv::Mat texture;  ///< CV_8UC1; treated as immutable once rendered (its pyramid is cached)
+  double width_m = 0, height_m = 0;
+  Pose cMp;  ///< plane frame in the camera frame (an object's faces hold oMp here instead)
+};
+
+struct RenderOptions {
+  bool antialias_edges = true;  ///< alpha-blend a sub-pixel coverage mask at plane edges
+  bool mipmap = true;           ///< sample a cv::pyrDown level so minified textures do not alias
+  double near_m = 0.01;         ///< near clipping plane (camera z, metres); parts closer are cut
+  int background_gray = 128;    ///< fill when no background image is given
+  void check() const;
+};
+
+/// Renders `planes` over `background` as seen by `cam` (cam.width x cam.height, CV_8UC1).
+/// background: CV_8UC1 (or 3-channel, converted), resized to the output when its size differs;
+/// empty -> constant background_gray. Planes seen from their +z side are culled; planes crossing
+/// the near plane are clipped. Occlusion: painter's algorithm, far to near by the distance of each
+/// plane's centre (exact for non-interpenetrating planes that do not overlap in depth ambiguously;
+/// a long plane behind a small one with a nearer centre can be drawn over it).
+/// With lens distortion the ideal pinhole image is rendered, then remapped so that the output
+/// obeys Intrinsics::project.
+cv::Mat renderView(const Intrinsics& cam, const std::vector<TexturedPlane>& planes,
+                   const cv::Mat& background, const RenderOptions& opt = {});
+
+/// Homography from level-0 texture pixels to ideal (undistorted) image pixels, x_img ~ H x_tex.
+Eigen::Matrix3d textureToImage(const Intrinsics& cam, const TexturedPlane& plane);
+
+/// Outer corners of the texture (pixel-edge corners, (±width/2, ±height/2, 0)) projected with
+/// Intrinsics::project (distortion included), order TL, TR, BR, BL. Requires the corners at z > 0.
+std::array<Eigen::Vector2d, 4> projectPlaneCorners(const Intrinsics& cam, const TexturedPlane& plane);
+
+}  // namespace refgrasp::sim
