@@ -27,12 +27,15 @@ constexpr double kPi = M_PI;
 // Local-search constants (the paper's "expected value" of the localisation error).
 constexpr double kSimilarityErrorPx = 2.0;     // at the seed itself: SIFT localisation
 constexpr double kSimilarityErrorPerPx = 0.1;  // growth with distance: ~10% scale/orientation error
-constexpr double kHomographyErrorPx = 2.0;     // after the pass-1 homography fit
-constexpr int kQuickNeighbours = 40;           // reference neighbours tried in the quick test
+constexpr double kHomographyErrorPx = 2.0;     // after a homography fit
+constexpr double kHomographyErrorPerPx = 0.03; // extrapolating a fit from the seed's neighbourhood
+constexpr int kQuickNeighbours = 40;           // detectable reference neighbours tried in the quick test
+constexpr int kStoredNeighbours = 200;         // neighbour list length (small ones get skipped)
 constexpr int kQuickMinMatches = 4;            // quick test passes with this many local matches
 constexpr int kPass1MinMatches = 6;            // pass-1 matches needed to fit a homography
 constexpr double kOverlapFraction = 0.25;      // instances overlapping more than this conflict
 constexpr double kMinAreaPx2 = 64.0;           // smallest projected pattern accepted
+constexpr double kAmbiguousSeedFraction = 0.7; // twin seeds need d1, d2 < this x max_descriptor_distance
 
 Vec2 pt(const cv::KeyPoint& k) { return Vec2(k.pt.x, k.pt.y); }
 double deg2rad(double d) { return d * kPi / 180.0; }
@@ -64,16 +67,11 @@ cv::Mat toS16(const cv::Mat& desc, std::vector<int>* norm2) {
   return out;
 }
 
-struct Nn2 {
-  int best = -1;
-  int d1 = INT_MAX, d2 = INT_MAX;  // squared distances
-};
-
 void knnRowsScalar(const cv::Mat& S, const std::vector<int>& sn2, const cv::Mat& R,
-                   const std::vector<int>& rn2, int s0, int s1, Nn2* out) {
+                   const std::vector<int>& rn2, int s0, int s1, NearestTwo* out) {
   for (int i = s0; i < s1; ++i) {
     const int16_t* s = S.ptr<int16_t>(i);
-    Nn2 nn;
+    NearestTwo nn;
     for (int j = 0; j < R.rows; ++j) {
       const int16_t* r = R.ptr<int16_t>(j);
       int dot = 0;
@@ -82,10 +80,12 @@ void knnRowsScalar(const cv::Mat& S, const std::vector<int>& sn2, const cv::Mat&
       if (d < nn.d2) {
         if (d < nn.d1) {
           nn.d2 = nn.d1;
+          nn.second = nn.best;
           nn.d1 = d;
           nn.best = j;
         } else {
           nn.d2 = d;
+          nn.second = j;
         }
       }
     }
@@ -97,12 +97,12 @@ void knnRowsScalar(const cv::Mat& S, const std::vector<int>& sn2, const cv::Mat&
 // Exact integer dot products, four scene rows per pass over a reference row.
 __attribute__((target("avx2"))) void knnRowsAvx2(const cv::Mat& S, const std::vector<int>& sn2,
                                                  const cv::Mat& R, const std::vector<int>& rn2,
-                                                 int s0, int s1, Nn2* out) {
+                                                 int s0, int s1, NearestTwo* out) {
   int i = s0;
   for (; i + 4 <= s1; i += 4) {
     const __m256i* s[4];
     for (int q = 0; q < 4; ++q) s[q] = reinterpret_cast<const __m256i*>(S.ptr<int16_t>(i + q));
-    Nn2 nn[4];
+    NearestTwo nn[4];
     for (int j = 0; j < R.rows; ++j) {
       const __m256i* r = reinterpret_cast<const __m256i*>(R.ptr<int16_t>(j));
       __m256i acc[4] = {_mm256_setzero_si256(), _mm256_setzero_si256(), _mm256_setzero_si256(),
@@ -124,10 +124,12 @@ __attribute__((target("avx2"))) void knnRowsAvx2(const cv::Mat& S, const std::ve
         if (d < nn[q].d2) {
           if (d < nn[q].d1) {
             nn[q].d2 = nn[q].d1;
+            nn[q].second = nn[q].best;
             nn[q].d1 = d;
             nn[q].best = j;
           } else {
             nn[q].d2 = d;
+            nn[q].second = j;
           }
         }
       }
@@ -138,13 +140,93 @@ __attribute__((target("avx2"))) void knnRowsAvx2(const cv::Mat& S, const std::ve
 }
 #endif
 
-/// For every scene descriptor: nearest and second-nearest reference descriptor (exact L2).
-std::vector<Nn2> globalKnn(const cv::Mat& S, const std::vector<int>& sn2, const cv::Mat& R,
-                           const std::vector<int>& rn2) {
-  std::vector<Nn2> out(S.rows);
+#ifdef REFGRASP_HAVE_X86
+// Eight scene rows per lane group; each reference row is one pass. Dot products with the 8-bit
+// VNNI instruction (u8 scene x s8 reference, exact int32 sums); the nearest/second-nearest
+// bookkeeping is vectorised across the eight scene rows.
+__attribute__((target("avx2,avx512f,avx512vl,avx512bw,avx512vnni"))) void knnBlocksVnni(
+    const cv::Mat& S8, const std::vector<int>& sn2, const ReferenceIndex& ref, int b0, int b1, NearestTwo* out) {
+  const int ns = S8.rows, nr = ref.descriptors_lo_s8.rows;
+  alignas(32) uint8_t pad[8][kDim];
+  for (int blk = b0; blk < b1; ++blk) {
+    const int i0 = blk * 8;
+    const uint8_t* rows[8];
+    for (int q = 0; q < 8; ++q) {
+      if (i0 + q < ns) {
+        rows[q] = S8.ptr<uint8_t>(i0 + q);
+      } else {
+        std::fill(pad[q], pad[q] + kDim, 0);
+        rows[q] = pad[q];
+      }
+    }
+    alignas(32) int n2[8];
+    for (int q = 0; q < 8; ++q) n2[q] = i0 + q < ns ? sn2[i0 + q] : 0;
+    const __m256i sn = _mm256_load_si256(reinterpret_cast<const __m256i*>(n2));
+    __m256i d1 = _mm256_set1_epi32(INT_MAX), d2 = _mm256_set1_epi32(INT_MAX);
+    __m256i best = _mm256_set1_epi32(-1), second = _mm256_set1_epi32(-1);
+    for (int j = 0; j < nr; ++j) {
+      const __m256i* lo = reinterpret_cast<const __m256i*>(ref.descriptors_lo_s8.ptr<int8_t>(j));
+      const __m256i l0 = _mm256_loadu_si256(lo), l1 = _mm256_loadu_si256(lo + 1),
+                    l2 = _mm256_loadu_si256(lo + 2), l3 = _mm256_loadu_si256(lo + 3);
+      __m256i acc[8];
+      for (int q = 0; q < 8; ++q) {
+        const __m256i* s = reinterpret_cast<const __m256i*>(rows[q]);
+        __m256i a = _mm256_dpbusd_epi32(_mm256_setzero_si256(), _mm256_loadu_si256(s), l0);
+        a = _mm256_dpbusd_epi32(a, _mm256_loadu_si256(s + 1), l1);
+        a = _mm256_dpbusd_epi32(a, _mm256_loadu_si256(s + 2), l2);
+        acc[q] = _mm256_dpbusd_epi32(a, _mm256_loadu_si256(s + 3), l3);
+      }
+      if (ref.has_hi[j]) {
+        const __m256i* hi = reinterpret_cast<const __m256i*>(ref.descriptors_hi_s8.ptr<int8_t>(j));
+        for (int q = 0; q < 8; ++q) {
+          const __m256i* s = reinterpret_cast<const __m256i*>(rows[q]);
+          __m256i a = _mm256_setzero_si256();
+          for (int k = 0; k < 4; ++k) a = _mm256_dpbusd_epi32(a, _mm256_loadu_si256(s + k), _mm256_loadu_si256(hi + k));
+          acc[q] = _mm256_add_epi32(acc[q], _mm256_slli_epi32(a, 7));
+        }
+      }
+      const __m256i h01 = _mm256_hadd_epi32(acc[0], acc[1]), h23 = _mm256_hadd_epi32(acc[2], acc[3]);
+      const __m256i h45 = _mm256_hadd_epi32(acc[4], acc[5]), h67 = _mm256_hadd_epi32(acc[6], acc[7]);
+      const __m256i h03 = _mm256_hadd_epi32(h01, h23), h47 = _mm256_hadd_epi32(h45, h67);
+      const __m256i dot = _mm256_add_epi32(_mm256_permute2x128_si256(h03, h47, 0x20),
+                                           _mm256_permute2x128_si256(h03, h47, 0x31));
+      const __m256i d = _mm256_sub_epi32(_mm256_add_epi32(sn, _mm256_set1_epi32(ref.descriptor_norm2[j])),
+                                         _mm256_slli_epi32(dot, 1));
+      const __m256i closer = _mm256_cmpgt_epi32(d1, d), closer2 = _mm256_cmpgt_epi32(d2, d);
+      const __m256i jv = _mm256_set1_epi32(j);
+      second = _mm256_blendv_epi8(_mm256_blendv_epi8(second, jv, closer2), best, closer);
+      d2 = _mm256_blendv_epi8(_mm256_min_epi32(d2, d), d1, closer);
+      best = _mm256_blendv_epi8(best, jv, closer);
+      d1 = _mm256_min_epi32(d1, d);
+    }
+    alignas(32) int vb[8], vs[8], v1[8], v2[8];
+    _mm256_store_si256(reinterpret_cast<__m256i*>(vb), best);
+    _mm256_store_si256(reinterpret_cast<__m256i*>(vs), second);
+    _mm256_store_si256(reinterpret_cast<__m256i*>(v1), d1);
+    _mm256_store_si256(reinterpret_cast<__m256i*>(v2), d2);
+    for (int q = 0; q < 8 && i0 + q < ns; ++q) out[i0 + q] = {vb[q], v1[q], v2[q], vs[q]};
+  }
+}
+#endif
+
+std::vector<NearestTwo> globalKnn(const cv::Mat& S, const std::vector<int>& sn2, const ReferenceIndex& ref) {
+  const cv::Mat& R = ref.descriptors_s16;
+  const std::vector<int>& rn2 = ref.descriptor_norm2;
+  std::vector<NearestTwo> out(S.rows);
   if (R.rows == 0 || S.rows == 0) return out;
 #ifdef REFGRASP_HAVE_X86
   static const bool avx2 = __builtin_cpu_supports("avx2");
+  static const bool vnni = __builtin_cpu_supports("avx512vnni") && __builtin_cpu_supports("avx512vl") &&
+                           __builtin_cpu_supports("avx512bw");
+  if (vnni) {
+    cv::Mat S8;
+    S.convertTo(S8, CV_8U);
+    const int nblocks = (S.rows + 7) / 8;
+    cv::parallel_for_(cv::Range(0, nblocks), [&](const cv::Range& rg) {
+      knnBlocksVnni(S8, sn2, ref, rg.start, rg.end, out.data());
+    }, 8);
+    return out;
+  }
 #else
   const bool avx2 = false;
 #endif
@@ -236,21 +318,24 @@ struct Context {
 /// radius of its predicted position, with orientation within +-tol and size within +-tol*s of the
 /// prediction, take the nearest in descriptor space if it passes the local ratio.
 /// radius_px(i, predicted xs) gives the search radius. One scene feature keeps its best match.
+/// With a list, at most max_tried of its features predicted to be detectable are tried.
 template <class Radius>
 void localSearch(const Context& cx, const Predictor& pred, const std::vector<int>* list,
-                 const Radius& radius_px, std::vector<LocalMatch>* out) {
+                 const Radius& radius_px, std::vector<LocalMatch>* out, int max_tried = INT_MAX) {
   out->clear();
   const auto& rk = cx.ref.features.keypoints;
   const auto& sk = cx.scene.keypoints;
   const double lr2 = cx.opt.local_ratio * cx.opt.local_ratio;
   std::vector<int> cand;
   const int n = list ? static_cast<int>(list->size()) : static_cast<int>(rk.size());
-  for (int li = 0; li < n; ++li) {
+  int tried = 0;
+  for (int li = 0; li < n && tried < max_tried; ++li) {
     const int i = list ? (*list)[li] : li;
     Vec2 xs;
     double ang, size;
     if (!pred.predict(rk[i], &xs, &ang, &size)) continue;
     if (size < cx.min_scene_size) continue;  // too small to have been detected in the scene
+    ++tried;
     const double r = radius_px(xs);
     if (xs.x() < cx.bounds.x - r || xs.y() < cx.bounds.y - r ||
         xs.x() > cx.bounds.x + cx.bounds.width + r || xs.y() > cx.bounds.y + cx.bounds.height + r)
@@ -380,8 +465,10 @@ std::vector<Correspondence> toCorrespondences(const std::vector<LocalMatch>& m) 
   return c;
 }
 
-/// Evaluates the hypothesis seeded by (ref r, scene s): quick test on r's neighbours, pass 1 with
-/// the similarity T^k over all reference features, pass 2 with the homography fitted to pass 1.
+/// Evaluates the hypothesis seeded by (ref r, scene s). The paper's local search under T^k, made
+/// cheap and perspective-tolerant by growing it: a quick test on r's nearest neighbours, pass 1
+/// under T^k on r's neighbourhood, then two passes over all reference features under the
+/// homography fitted to the previous pass.
 bool evaluateHypothesis(const Context& cx, int r, int s, Candidate* out) {
   const auto& rk = cx.ref.features.keypoints;
   const auto& sk = cx.scene.keypoints;
@@ -394,25 +481,35 @@ bool evaluateHypothesis(const Context& cx, int r, int s, Candidate* out) {
     return factor * (kSimilarityErrorPx + kSimilarityErrorPerPx * (xs - seed).norm());
   };
   std::vector<LocalMatch> m;
-  localSearch(cx, sim, &cx.ref.neighbours[r], simRadius, &m);
+  localSearch(cx, sim, &cx.ref.neighbours[r], simRadius, &m, kQuickNeighbours);
   if (static_cast<int>(m.size()) < kQuickMinMatches) return false;
-  localSearch(cx, sim, nullptr, simRadius, &m);
+  localSearch(cx, sim, &cx.ref.neighbours[r], simRadius, &m);
   if (static_cast<int>(m.size()) < kPass1MinMatches) return false;
 
-  std::vector<Vec2> a, b;
-  for (const auto& x : m) {
-    a.push_back(pt(rk[x.ref]));
-    b.push_back(pt(sk[x.scene]));
+  // A homography fitted to a neighbourhood extrapolates with an error that grows with the
+  // distance from it; the second fit covers the whole pattern and is trusted uniformly.
+  for (int pass = 0; pass < 2; ++pass) {
+    std::vector<Vec2> a, b;
+    for (const auto& x : m) {
+      a.push_back(pt(rk[x.ref]));
+      b.push_back(pt(sk[x.scene]));
+    }
+    const HomographyResult h = estimateHomography(a, b, homographyOptions(cx.opt));
+    if (!h.ok || static_cast<int>(h.inliers.size()) < kPass1MinMatches) return false;
+    const Predictor hom = Predictor::homography(h.H);
+    const double e0 = std::max(kHomographyErrorPx, h.rms_px);
+    if (pass == 0) {
+      localSearch(cx, hom, nullptr, [&](const Vec2& xs) {
+        return factor * (e0 + kHomographyErrorPerPx * (xs - seed).norm());
+      }, &m);
+    } else {
+      localSearch(cx, hom, nullptr, [&](const Vec2&) { return factor * e0; }, &m);
+    }
   }
-  const HomographyResult h1 = estimateHomography(a, b, homographyOptions(cx.opt));
-  if (!h1.ok || static_cast<int>(h1.inliers.size()) < kPass1MinMatches) return false;
-  const Predictor hom = Predictor::homography(h1.H);
-  const double r2 = factor * std::max(kHomographyErrorPx, h1.rms_px);
-  localSearch(cx, hom, nullptr, [&](const Vec2&) { return r2; }, &m);
   return makeCandidate(cx, toCorrespondences(m), out);
 }
 
-MatchResult matchPaper(const Context& cx, const std::vector<Nn2>& nn) {
+MatchResult matchPaper(const Context& cx, const std::vector<NearestTwo>& nn) {
   MatchResult res;
   const auto& rk = cx.ref.features.keypoints;
   const auto& sk = cx.scene.keypoints;
@@ -421,12 +518,11 @@ MatchResult matchPaper(const Context& cx, const std::vector<Nn2>& nn) {
     int ref, scene;
     double ratio2;
     long key;
+    bool ambiguous;
   };
   std::vector<Seed> seeds;
   std::unordered_map<long, int> votes;
-  for (int j = 0; j < static_cast<int>(nn.size()); ++j) {
-    if (nn[j].best < 0 || nn[j].d2 == INT_MAX || !(nn[j].d1 < gr2 * nn[j].d2)) continue;
-    const int r = nn[j].best;
+  auto addSeed = [&](int r, int j, double ratio2, bool ambiguous) {
     // Hough key of T^k (Lowe's bins): predicted pattern centre in cells of a quarter of the
     // projected pattern size, scale octave, 30 degree orientation bins. Used only for ordering.
     const Predictor p = Predictor::similarity(rk[r], sk[j]);
@@ -436,19 +532,42 @@ MatchResult matchPaper(const Context& cx, const std::vector<Nn2>& nn) {
     const long ox = static_cast<long>(std::floor(wrapPi(p.dtheta) / (kPi / 6)));
     const long key = ((((static_cast<long>(std::floor(c.x() / cell)) & 0xfff) * 4096 +
                         (static_cast<long>(std::floor(c.y() / cell)) & 0xfff)) * 64 + (so & 63)) * 16) + (ox & 15);
-    seeds.push_back({r, j, static_cast<double>(nn[j].d1) / nn[j].d2, key});
+    seeds.push_back({r, j, ratio2, key, ambiguous});
     ++votes[key];
+  };
+  // Repeated and symmetric patterns make twins in the reference, so the global ratio rejects
+  // their matches; a close match to the first or second twin still seeds a hypothesis (tried
+  // after the unambiguous ones), and the local search decides.
+  const double amb1 = kAmbiguousSeedFraction * cx.opt.max_descriptor_distance;
+  const double amb1_2 = amb1 * amb1;
+  for (int j = 0; j < static_cast<int>(nn.size()); ++j) {
+    if (nn[j].best < 0 || nn[j].d2 == INT_MAX) continue;
+    const double ratio2 = static_cast<double>(nn[j].d1) / nn[j].d2;
+    if (ratio2 < gr2) {
+      addSeed(nn[j].best, j, ratio2, false);
+      ++res.global_matches;
+    } else if (nn[j].d1 < amb1_2 && nn[j].d2 < amb1_2) {
+      addSeed(nn[j].best, j, ratio2, true);
+      addSeed(nn[j].second, j, ratio2, true);
+    }
   }
-  res.global_matches = static_cast<int>(seeds.size());
   std::stable_sort(seeds.begin(), seeds.end(), [&](const Seed& a, const Seed& b) {
+    if (a.ambiguous != b.ambiguous) return b.ambiguous;
     const int va = votes[a.key], vb = votes[b.key];
     return va != vb ? va > vb : a.ratio2 < b.ratio2;
   });
 
   std::vector<Candidate> cands;
   std::vector<char> covered(sk.size(), 0);
+  bool clean_candidate = false;
   for (const Seed& sd : seeds) {
     if (res.hypotheses_evaluated >= cx.opt.max_hypotheses) break;
+    // Early exit once there are enough candidates: seeds are ordered by cluster size, ambiguous
+    // ones last. Lone seeds are then skipped; ambiguous ones too unless the pattern itself is
+    // ambiguous (all candidates so far came from twin seeds), where alignments must compete.
+    if (static_cast<int>(cands.size()) >= cx.opt.max_instances &&
+        (sd.ambiguous ? clean_candidate : votes[sd.key] < 2))
+      break;
     if (covered[sd.scene]) continue;
     // Collapse: a seed that an existing candidate already explains is a near-identical hypothesis.
     bool explained = false;
@@ -463,6 +582,7 @@ MatchResult matchPaper(const Context& cx, const std::vector<Nn2>& nn) {
     ++res.hypotheses_evaluated;
     Candidate c;
     if (!evaluateHypothesis(cx, sd.ref, sd.scene, &c)) continue;
+    clean_candidate |= !sd.ambiguous;
     for (const auto& m : c.inliers) covered[m.scene] = 1;
     cands.push_back(std::move(c));
   }
@@ -470,7 +590,7 @@ MatchResult matchPaper(const Context& cx, const std::vector<Nn2>& nn) {
   return res;
 }
 
-MatchResult matchRatio(const Context& cx, const std::vector<Nn2>& nn) {
+MatchResult matchRatio(const Context& cx, const std::vector<NearestTwo>& nn) {
   MatchResult res;
   res.hypotheses_evaluated = 1;
   const double gr2 = cx.opt.global_ratio * cx.opt.global_ratio;
@@ -500,6 +620,12 @@ MatchResult matchRatio(const Context& cx, const std::vector<Nn2>& nn) {
 }
 
 }  // namespace
+
+std::vector<NearestTwo> nearestTwo(const ReferenceIndex& ref, const Features& scene) {
+  std::vector<int> n2;
+  const cv::Mat s16 = toS16(scene.descriptors, &n2);
+  return globalKnn(s16, n2, ref);
+}
 
 void MatchOptions::check() const {
   refgrasp::check(global_ratio > 0 && global_ratio <= 1, "MatchOptions.global_ratio", "must be in (0, 1]");
@@ -571,6 +697,16 @@ ReferenceIndex buildReferenceIndex(Features f, const std::vector<Vec2>& polygon,
     f.descriptors.row(keep[k]).copyTo(ri.features.descriptors.row(static_cast<int>(k)));
   }
   ri.descriptors_s16 = toS16(ri.features.descriptors, &ri.descriptor_norm2);
+  ri.descriptors_lo_s8.create(ri.descriptors_s16.size(), CV_8S);
+  ri.descriptors_hi_s8.create(ri.descriptors_s16.size(), CV_8S);
+  ri.has_hi.assign(ri.descriptors_s16.rows, 0);
+  for (int i = 0; i < ri.descriptors_s16.rows; ++i)
+    for (int k = 0; k < kDim; ++k) {
+      const int v = ri.descriptors_s16.at<int16_t>(i, k);
+      ri.descriptors_lo_s8.at<int8_t>(i, k) = static_cast<int8_t>(v & 127);
+      ri.descriptors_hi_s8.at<int8_t>(i, k) = static_cast<int8_t>(v >> 7);
+      ri.has_hi[i] |= v >= 128;
+    }
 
   const int n = ri.features.size();
   ri.neighbours.resize(n);
@@ -578,7 +714,7 @@ ReferenceIndex buildReferenceIndex(Features f, const std::vector<Vec2>& polygon,
   for (int i = 0; i < n; ++i) {
     for (int j = 0; j < n; ++j)
       d[j] = {(pt(ri.features.keypoints[i]) - pt(ri.features.keypoints[j])).squaredNorm() + (i == j ? -1 : 0), j};
-    const int k = std::min(n, kQuickNeighbours);
+    const int k = std::min(n, kStoredNeighbours);
     std::partial_sort(d.begin(), d.begin() + k, d.end());
     for (int q = 0; q < k; ++q) ri.neighbours[i].push_back(d[q].second);
   }
@@ -597,7 +733,7 @@ MatchResult matchObject(const ReferenceIndex& ref, const Features& scene, const 
   cx.min_scene_size = 0.8 * min_size;
   cx.max_dd2 = opt.max_descriptor_distance * opt.max_descriptor_distance;
   cx.bounds = cv::Rect2d(-0.5, -0.5, scene.image_size.width, scene.image_size.height);
-  const std::vector<Nn2> nn = globalKnn(cx.scene16, cx.scene_norm2, ref.descriptors_s16, ref.descriptor_norm2);
+  const std::vector<NearestTwo> nn = globalKnn(cx.scene16, cx.scene_norm2, ref);
   return opt.matcher == MatcherType::kPaper ? matchPaper(cx, nn) : matchRatio(cx, nn);
 }
 

@@ -51,6 +51,9 @@ struct ReferenceIndex {
   std::vector<std::vector<int>> neighbours;   ///< per feature: nearest features (reference px), self first
   cv::Mat descriptors_s16;                    ///< CV_16S copy (OpenCV SIFT values are integers 0..255)
   std::vector<int> descriptor_norm2;          ///< squared L2 norms of descriptors_s16 rows
+  /// Exact integer split for 8-bit dot products: value = lo + 128 * hi, lo in [0,127], hi in {0,1}.
+  cv::Mat descriptors_lo_s8, descriptors_hi_s8;  ///< CV_8S, N x 128
+  std::vector<unsigned char> has_hi;             ///< row has a value >= 128
 };
 
 /// Keeps features inside the polygon (>= 3 vertices; empty = whole image), then the strongest
@@ -77,6 +80,17 @@ struct MatchResult {
   int hypotheses_evaluated = 0;  ///< hypotheses given a local search (paper) / 1 (ratio)
   int global_matches = 0;        ///< scene features passing the global ratio test
 };
+
+/// Nearest and second-nearest reference feature of one scene feature; squared L2 distances of
+/// the integer-valued SIFT descriptors (exact).
+struct NearestTwo {
+  int best = -1;            ///< index into ReferenceIndex::features, -1 when there is none
+  int d1 = 2147483647;      ///< squared distance to best
+  int d2 = 2147483647;      ///< squared distance to the second nearest
+  int second = -1;          ///< index of the second nearest
+};
+/// For every scene feature (global matching, paper III-B); multithreaded, SIMD where available.
+std::vector<NearestTwo> nearestTwo(const ReferenceIndex& ref, const Features& scene);
 
 /// Finds up to opt.max_instances instances of the reference in the scene. grid must index
 /// scene.keypoints. An empty result is the normal "not found".

@@ -1,0 +1,244 @@
+// Matchers on synthetic scenes rendered at known poses: the paper's local-geometric-consistency
+// matcher and the ratio baseline. Ground truth: the renderer's texture -> image homography.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <climits>
+#include <cstdio>
+#include <random>
+#include <set>
+
+#include "common/synthetic_scene.h"
+#include "detector/homography.h"
+#include "detector/matching.h"
+
+namespace refgrasp::detector {
+namespace {
+
+using testing::loadMedia;
+using testing::sceneCamera;
+using Vec2 = Eigen::Vector2d;
+
+/// Outer texture corners in reference (= texture) pixels, TL TR BR BL.
+std::array<Vec2, 4> textureCorners(const cv::Mat& tex) {
+  return {Vec2(-0.5, -0.5), Vec2(tex.cols - 0.5, -0.5), Vec2(tex.cols - 0.5, tex.rows - 0.5),
+          Vec2(-0.5, tex.rows - 0.5)};
+}
+
+/// Largest image distance between the corners mapped by H and the true corners.
+double cornerError(const Eigen::Matrix3d& H, const cv::Mat& tex, const std::array<Vec2, 4>& truth) {
+  const auto c = textureCorners(tex);
+  double e = 0;
+  for (int i = 0; i < 4; ++i) e = std::max(e, (applyHomography(H, c[i]) - truth[i]).norm());
+  return e;
+}
+
+ReferenceIndex referenceFor(const cv::Mat& tex, const MatchOptions& opt) {
+  return buildReferenceIndex(extractSift(tex, SiftOptions{}), {}, opt);
+}
+
+MatchResult run(const ReferenceIndex& ref, const cv::Mat& image, const MatchOptions& opt) {
+  const Features f = extractSift(image, SiftOptions{});
+  const GridIndex grid(f.keypoints, f.image_size);
+  return matchObject(ref, f, grid, opt);
+}
+
+TEST(Matching, NearestTwoIsExact) {
+  const cv::Mat tex = loadMedia("targets/book_cover.png");
+  const ReferenceIndex ref = referenceFor(tex, MatchOptions{});
+  const Features scene = extractSift(testing::clutterBackground(3), SiftOptions{});
+  ASSERT_GT(ref.features.size(), 300);
+  ASSERT_GT(scene.size(), 300);
+  const auto nn = nearestTwo(ref, scene);
+  ASSERT_EQ(static_cast<int>(nn.size()), scene.size());
+  for (int j = 0; j < scene.size(); ++j) {
+    long d1 = LONG_MAX, d2 = LONG_MAX;
+    for (int i = 0; i < ref.features.size(); ++i) {
+      const double d = cv::norm(scene.descriptors.row(j), ref.features.descriptors.row(i), cv::NORM_L2SQR);
+      const long di = std::lround(d);
+      if (di < d1) {
+        d2 = d1;
+        d1 = di;
+      } else if (di < d2) {
+        d2 = di;
+      }
+    }
+    ASSERT_EQ(nn[j].d1, d1) << "scene feature " << j;
+    ASSERT_EQ(nn[j].d2, d2) << "scene feature " << j;
+    const double at_best = cv::norm(scene.descriptors.row(j), ref.features.descriptors.row(nn[j].best), cv::NORM_L2SQR);
+    const double at_second = cv::norm(scene.descriptors.row(j), ref.features.descriptors.row(nn[j].second), cv::NORM_L2SQR);
+    ASSERT_EQ(std::lround(at_best), d1);
+    ASSERT_EQ(std::lround(at_second), d2);
+  }
+}
+
+TEST(Matching, PaperMatcherRecoversHomographyOnRandomPoses) {
+  const Intrinsics cam = sceneCamera();
+  std::mt19937_64 rng(2024);
+  const auto& names = testing::targetTextures();
+  MatchOptions opt;
+  int n = 0;
+  double worst = 0;
+  for (const auto& name : names) {
+    const cv::Mat tex = loadMedia(name);
+    const double w = 0.2, h = w * tex.rows / tex.cols;
+    const ReferenceIndex ref = referenceFor(tex, opt);
+    for (int k = 0; k < 4; ++k, ++n) {
+      testing::SceneSpec spec;
+      spec.cMo = testing::randomVisiblePose(rng, cam, w, h, 0.3, 1.2, 50 * M_PI / 180);
+      spec.seed = 500 + n;
+      spec.motion_blur_px = k % 2 ? 2.0 : 0.0;
+      spec.motion_blur_angle_rad = 0.3 * k;
+      const auto scene = testing::renderTarget(cam, tex, w, h, spec);
+      const MatchResult res = run(ref, scene.image, opt);
+      ASSERT_EQ(res.instances.size(), 1u) << name << " pose " << k << " z " << spec.cMo.t.z();
+      const double e = cornerError(res.instances[0].H, tex, scene.corners);
+      EXPECT_LT(e, 2.0) << name << " pose " << k << " z " << spec.cMo.t.z();
+      EXPECT_GE(static_cast<int>(res.instances[0].inliers.size()), opt.min_inliers);
+      EXPECT_LE(res.hypotheses_evaluated, opt.max_hypotheses);
+      worst = std::max(worst, e);
+    }
+  }
+  std::printf("paper matcher: %d random poses, worst corner error %.2f px\n", n, worst);
+}
+
+TEST(Matching, RatioMatcherRecoversHomography) {
+  const Intrinsics cam = sceneCamera();
+  std::mt19937_64 rng(77);
+  const cv::Mat tex = loadMedia("targets/cereal_box.png");
+  MatchOptions opt;
+  opt.matcher = MatcherType::kRatio;
+  const ReferenceIndex ref = referenceFor(tex, opt);
+  for (int k = 0; k < 4; ++k) {
+    testing::SceneSpec spec;
+    spec.cMo = testing::randomVisiblePose(rng, cam, 0.2, 0.2, 0.3, 0.8, 40 * M_PI / 180);
+    spec.seed = 900 + k;
+    const auto scene = testing::renderTarget(cam, tex, 0.2, 0.2, spec);
+    const MatchResult res = run(ref, scene.image, opt);
+    ASSERT_EQ(res.instances.size(), 1u) << "pose " << k;
+    EXPECT_LT(cornerError(res.instances[0].H, tex, scene.corners), 2.0) << "pose " << k;
+  }
+}
+
+TEST(Matching, MultipleInstancesAreFoundAndDisjoint) {
+  const Intrinsics cam = sceneCamera();
+  const cv::Mat tex = loadMedia("targets/tea_box.png");
+  MatchOptions opt;
+  opt.max_instances = 4;
+  const ReferenceIndex ref = referenceFor(tex, opt);
+  std::mt19937_64 rng(31);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (int frame = 0; frame < 3; ++frame) {
+    const int copies = 2 + frame % 2;  // 2, 3, 2
+    std::vector<sim::TexturedPlane> planes;
+    for (int c = 0; c < copies; ++c) {
+      sim::TexturedPlane p;
+      p.texture = tex;
+      p.width_m = p.height_m = 0.12;
+      const double x = (c - (copies - 1) / 2.0) * 0.19;
+      p.cMp = Pose(axisAngle(Eigen::Vector3d(u(rng), u(rng), 0), 0.35 * std::abs(u(rng))) *
+                       axisAngle(Eigen::Vector3d::UnitZ(), 3 * u(rng)),
+                   Eigen::Vector3d(x, 0.04 * u(rng), 0.7));
+      planes.push_back(p);
+    }
+    testing::SceneSpec spec;
+    spec.seed = 40 + frame;
+    const auto scene = testing::renderTargets(cam, planes, spec);
+    const MatchResult res = run(ref, scene.image, opt);
+    ASSERT_EQ(static_cast<int>(res.instances.size()), copies) << "frame " << frame;
+    std::set<int> truth_hit, scene_used;
+    for (const auto& inst : res.instances) {
+      int best = -1;
+      double best_e = 1e9;
+      for (int c = 0; c < copies; ++c) {
+        const double e = cornerError(inst.H, tex, scene.all_corners[c]);
+        if (e < best_e) best_e = e, best = c;
+      }
+      EXPECT_LT(best_e, 2.0) << "frame " << frame;
+      truth_hit.insert(best);
+      for (const auto& m : inst.inliers) EXPECT_TRUE(scene_used.insert(m.scene).second) << "shared scene feature";
+    }
+    EXPECT_EQ(static_cast<int>(truth_hit.size()), copies) << "each copy found once, frame " << frame;
+    for (size_t i = 1; i < res.instances.size(); ++i) EXPECT_LE(res.instances[i - 1].score, res.instances[i].score);
+  }
+}
+
+TEST(Matching, NothingOnClutterAlone) {
+  const cv::Mat tex = loadMedia("targets/magazine.png");
+  for (MatcherType type : {MatcherType::kPaper, MatcherType::kRatio}) {
+    MatchOptions opt;
+    opt.matcher = type;
+    opt.max_instances = 3;
+    const ReferenceIndex ref = referenceFor(tex, opt);
+    for (uint64_t seed = 0; seed < 6; ++seed) {
+      const MatchResult res = run(ref, testing::clutterBackground(7000 + seed), opt);
+      EXPECT_TRUE(res.instances.empty()) << "seed " << seed << " matcher " << static_cast<int>(type);
+    }
+  }
+}
+
+TEST(Matching, DeterministicForTheSameInput) {
+  const Intrinsics cam = sceneCamera();
+  const cv::Mat tex = loadMedia("targets/poster_concert.png");
+  std::mt19937_64 rng(5);
+  testing::SceneSpec spec;
+  spec.cMo = testing::randomVisiblePose(rng, cam, 0.2, 0.15, 0.5, 0.9, 0.6);
+  const auto scene = testing::renderTarget(cam, tex, 0.2, 0.15, spec);
+  const MatchOptions opt;
+  const ReferenceIndex ref = referenceFor(tex, opt);
+  const MatchResult a = run(ref, scene.image, opt), b = run(ref, scene.image, opt);
+  ASSERT_EQ(a.instances.size(), 1u);
+  ASSERT_EQ(b.instances.size(), 1u);
+  EXPECT_EQ((a.instances[0].H - b.instances[0].H).norm(), 0.0);
+  EXPECT_EQ(a.instances[0].inliers.size(), b.instances[0].inliers.size());
+  EXPECT_EQ(a.hypotheses_evaluated, b.hypotheses_evaluated);
+}
+
+TEST(Matching, ReferenceIndexKeepsStrongestInsidePolygon) {
+  const cv::Mat tex = loadMedia("targets/cereal_box.png");
+  const Features f = extractSift(tex, SiftOptions{});
+  MatchOptions opt;
+  opt.max_reference_features = 150;
+  const std::vector<Vec2> left_half = {Vec2(0, 0), Vec2(200, 0), Vec2(200, 399), Vec2(0, 399)};
+  const ReferenceIndex ri = buildReferenceIndex(f, left_half, opt);
+  ASSERT_EQ(ri.features.size(), 150);
+  for (const auto& k : ri.features.keypoints) EXPECT_LE(k.pt.x, 200.f);
+  for (int i = 1; i < ri.features.size(); ++i)
+    EXPECT_GE(ri.features.keypoints[i - 1].response, ri.features.keypoints[i].response);
+  EXPECT_NEAR(ri.centre_px.x(), 100, 1e-9);
+  EXPECT_NEAR(ri.centre_px.y(), 199.5, 1e-9);
+  EXPECT_EQ(ri.features.descriptors.rows, 150);
+  EXPECT_THROW(buildReferenceIndex(f, {Vec2(0, 0), Vec2(1, 1)}, opt), std::invalid_argument);
+  EXPECT_THROW(buildReferenceIndex(f, {Vec2(0, 0), Vec2(1, 1), Vec2(2, 2)}, opt), std::invalid_argument);
+}
+
+TEST(Matching, OptionsCheckRejectsNonsense) {
+  EXPECT_NO_THROW(MatchOptions{}.check());
+  auto bad = [](auto mutate) {
+    MatchOptions o;
+    mutate(o);
+    EXPECT_THROW(o.check(), std::invalid_argument);
+  };
+  bad([](MatchOptions& o) { o.global_ratio = 0; });
+  bad([](MatchOptions& o) { o.global_ratio = 1.5; });
+  bad([](MatchOptions& o) { o.local_ratio = -0.1; });
+  bad([](MatchOptions& o) { o.search_radius_factor = 0; });
+  bad([](MatchOptions& o) { o.orientation_tolerance_rad = 4; });
+  bad([](MatchOptions& o) { o.scale_tolerance = 1; });
+  bad([](MatchOptions& o) { o.max_hypotheses = 0; });
+  bad([](MatchOptions& o) { o.max_reference_features = 3; });
+  bad([](MatchOptions& o) { o.min_inliers = 3; });
+  bad([](MatchOptions& o) { o.ransac_reproj_px = std::nan(""); });
+  bad([](MatchOptions& o) { o.max_instances = 0; });
+  bad([](MatchOptions& o) { o.max_descriptor_distance = -1; });
+  // matchObject checks its options too, and tolerates empty inputs.
+  MatchOptions o;
+  const ReferenceIndex empty = buildReferenceIndex(Features{}, {Vec2(0, 0), Vec2(9, 0), Vec2(0, 9)}, o);
+  const Features none;
+  EXPECT_TRUE(matchObject(empty, none, GridIndex(), o).instances.empty());
+  o.min_inliers = 0;
+  EXPECT_THROW(matchObject(empty, none, GridIndex(), o), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace refgrasp::detector
