@@ -22,7 +22,9 @@ void Degradation::check() const {
 
 cv::Mat motionBlurKernel(double length_px, double angle_rad) {
   if (!(length_px >= 0.5)) return cv::Mat::ones(1, 1, CV_32F);
-  const double c = std::cos(angle_rad), s = std::sin(angle_rad);
+  // Snap near-axis directions so that angle and angle + pi give the identical kernel.
+  const auto snap = [](double v) { return std::abs(v) < 1e-9 ? 0.0 : v; };
+  const double c = snap(std::cos(angle_rad)), s = snap(std::sin(angle_rad));
   const int rx = static_cast<int>(std::ceil(std::abs(c) * length_px / 2)) + 1;
   const int ry = static_cast<int>(std::ceil(std::abs(s) * length_px / 2)) + 1;
   cv::Mat k = cv::Mat::zeros(2 * ry + 1, 2 * rx + 1, CV_32F);

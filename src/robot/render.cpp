@@ -199,7 +199,8 @@ cv::Mat coverageMask(const Poly2& poly, const cv::Rect& roi, bool antialias) {
 }
 
 // Draws one plane into `canvas` (an ideal pinhole image with intrinsic matrix K).
-void drawPlane(cv::Mat& canvas, const Eigen::Matrix3d& K, const TexturedPlane& p,
+// inv_depth: per-pixel 1/z of the nearest plane drawn so far (0 = nothing): a depth test.
+void drawPlane(cv::Mat& canvas, cv::Mat& inv_depth, const Eigen::Matrix3d& K, const TexturedPlane& p,
                const RenderOptions& opt) {
   const Pose& cMp = p.cMp;
   // Visible side: the camera centre lies on the plane's -z side, i.e. n . t > 0.
@@ -269,16 +270,27 @@ void drawPlane(cv::Mat& canvas, const Eigen::Matrix3d& K, const TexturedPlane& p
 
   const cv::Mat mask = coverageMask(poly, roi, opt.antialias_edges);
 
-  cv::Mat dst = canvas(roi);
+  // On the plane n.X = n.t, the ray X = z K^-1 (u, v, 1) has 1/z = n^T K^-1 (u, v, 1) / n.t,
+  // linear in the pixel coordinates.
+  const Eigen::Vector3d g = (K.inverse().transpose() * cMp.R.col(2)) / cMp.R.col(2).dot(cMp.t);
+  cv::Mat dst = canvas(roi), zbuf = inv_depth(roi);
   for (int y = 0; y < roi.height; ++y) {
     const uchar* a = mask.ptr<uchar>(y);
     const uchar* src = warped.ptr<uchar>(y);
     uchar* d = dst.ptr<uchar>(y);
+    float* zb = zbuf.ptr<float>(y);
+    const double row = g.y() * (y + roi.y) + g.z();
     for (int x = 0; x < roi.width; ++x) {
-      if (a[x] == 255)
+      if (a[x] == 0) continue;
+      const float iz = static_cast<float>(g.x() * (x + roi.x) + row);
+      if (iz < zb[x]) continue;  // behind what is already there
+      if (a[x] == 255) {
         d[x] = src[x];
-      else if (a[x] != 0)
+        zb[x] = iz;
+      } else {
         d[x] = static_cast<uchar>((src[x] * a[x] + d[x] * (255 - a[x]) + 127) / 255);
+        if (a[x] >= 128) zb[x] = iz;
+      }
     }
   }
 }
@@ -334,7 +346,8 @@ cv::Mat renderView(const Intrinsics& cam, const std::vector<TexturedPlane>& plan
   std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
     return planes[a].cMp.t.norm() > planes[b].cMp.t.norm();
   });
-  for (size_t i : order) drawPlane(canvas, K, planes[i], opt);
+  cv::Mat inv_depth = cv::Mat::zeros(canvas.size(), CV_32F);
+  for (size_t i : order) drawPlane(canvas, inv_depth, K, planes[i], opt);
 
   if (!dmap) return canvas;
   cv::Mat out;

@@ -33,9 +33,9 @@ struct RenderOptions {
 /// Renders `planes` over `background` as seen by `cam` (cam.width x cam.height, CV_8UC1).
 /// background: CV_8UC1 (or 3-channel, converted), resized to the output when its size differs;
 /// empty -> constant background_gray. Planes seen from their +z side are culled; planes crossing
-/// the near plane are clipped. Occlusion: painter's algorithm, far to near by the distance of each
-/// plane's centre (exact for non-interpenetrating planes that do not overlap in depth ambiguously;
-/// a long plane behind a small one with a nearer centre can be drawn over it).
+/// the near plane are clipped. Occlusion: a per-pixel depth test, with planes drawn far to near by
+/// the distance of their centres so that anti-aliased edges blend over what lies behind them
+/// (an edge pixel of a far plane drawn after a nearer one is skipped, not blended).
 /// With lens distortion the ideal pinhole image is rendered, then remapped so that the output
 /// obeys Intrinsics::project.
 cv::Mat renderView(const Intrinsics& cam, const std::vector<TexturedPlane>& planes,

@@ -142,6 +142,21 @@ TEST(Render, NearerPlanesOccludeFartherOnesWhateverTheOrder) {
   }
 }
 
+// A large oblique plane whose centre is nearer than a small plane's, but which lies behind it at
+// the image centre: ordering by centre distance alone would draw it over the small plane.
+TEST(Render, DepthTestBeatsCentreDistanceOrdering) {
+  const Intrinsics cam = testing::sceneCamera();
+  const TexturedPlane small{cv::Mat(50, 50, CV_8U, cv::Scalar(250)), 0.2, 0.2,
+                            Pose(Eigen::Matrix3d::Identity(), {0, 0, 1.5})};
+  const Eigen::Matrix3d R = axisAngle(Eigen::Vector3d::UnitY(), M_PI / 3);
+  const Eigen::Vector3d centre = Eigen::Vector3d(0, 0, 2.5) + 2.0 * R.col(0);
+  const TexturedPlane big{cv::Mat(50, 50, CV_8U, cv::Scalar(10)), 5.0, 5.0, Pose(R, centre)};
+  ASSERT_LT(big.cMp.t.norm(), small.cMp.t.norm());
+  const cv::Mat img = renderView(cam, {small, big}, cv::Mat());
+  EXPECT_EQ(img.at<uchar>(240, 320), 250);
+  EXPECT_EQ(img.at<uchar>(240, 320 + 100), 10);
+}
+
 // A large textured plane crossing the camera plane (like a floor): every pixel is compared with a
 // ray cast, so clipping at the near plane leaves no garbage.
 TEST(Render, PlaneCrossingTheCameraMatchesRayCasting) {

@@ -1,0 +1,68 @@
+#pragma once
+// Simulated worlds for the synthetic camera and the simulated enon, read from scenario YAML.
+//
+// World frame w: z up, origin on the floor, x forward from the robot's usual start.
+// Object frames follow the planar-object convention of the object's front face (DEVELOPERS.md):
+// origin at the centre of the front texture, x along its columns, y along its rows (down for an
+// upright object), z into the object (away from a viewer of the front face). A box of size
+// (x, y, z) = (width, height, depth) extends from z = 0 (front face) to z = depth.
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/pose.h"
+#include "core/types.h"
+#include "robot/degrade.h"
+#include "robot/render.h"
+
+namespace refgrasp::sim {
+
+struct SimObject {
+  std::string name;
+  std::string definition;  ///< resolved path of the detector object YAML ("" for distractors)
+  Pose wMo;                ///< object frame in the world
+  Pose oMg;                ///< grasp frame in the object frame
+  std::vector<TexturedPlane> faces;  ///< the cMp field of each face holds oMp (face in object frame)
+  bool is_target = false;
+};
+
+struct World {
+  std::vector<SimObject> objects;  ///< scenario objects first, then the table, floor and walls
+  cv::Mat background;              ///< far backdrop where no plane is seen (may be empty)
+};
+
+/// Faults of the simulated robot, applied by the simulated enon (robot/sim_enon).
+struct Faults {
+  double command_latency_s = 0;        ///< commands take effect this much later
+  double frame_drop_probability = 0;   ///< per stereo frame, in [0, 1]
+  double frame_delay_s = 0;            ///< frames are delivered this much after exposure
+  double odom_noise_m_per_m = 0;       ///< odometry translation noise (std) per metre travelled
+  double odom_noise_rad_per_rad = 0;   ///< odometry heading noise (std) per radian turned
+  std::string stuck_joint;             ///< joint name from config/enon.yaml ("" = none)
+  double stuck_after_s = 0;            ///< the joint stops moving after this simulation time
+};
+
+struct Scenario {
+  std::string path;
+  uint64_t seed = 0;
+  World world;
+  double start_x_m = 0, start_y_m = 0, start_theta_rad = 0;  ///< robot base pose in the world
+  Faults faults;
+  Degradation camera;        ///< per-image degradations of the synthetic camera
+  double exposure_s = 0.01;  ///< motion blur = image motion during the exposure
+  double max_duration_s = 120;
+};
+
+/// Reads and validates a scenario YAML (format: config/scenarios/README.md). Textures and object
+/// definitions are resolved relative to the scenario file. Throws ConfigError
+/// "<file>: <field>: <problem>" (one line; fields like objects[1].pose.translation).
+Scenario loadScenario(const std::string& path);
+
+/// Planes of a box of `size_m` (x, y, z extents) centred on `centre` in the frame f, faces ordered
+/// -x, +x, -y, +y, -z, +z. `rows` gives, per face, the frame-f direction of the texture rows.
+std::vector<TexturedPlane> boxFaces(const Eigen::Vector3d& size_m, const Eigen::Vector3d& centre,
+                                    const std::array<cv::Mat, 6>& textures,
+                                    const std::array<Eigen::Vector3d, 6>& rows);
+
+}  // namespace refgrasp::sim

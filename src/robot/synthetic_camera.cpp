@@ -1,0 +1,76 @@
+#include "robot/synthetic_camera.h"
+
+#include <cmath>
+#include <limits>
+
+#include "core/error.h"
+
+namespace refgrasp::sim {
+
+std::vector<TexturedPlane> worldPlanes(const World& world, const Pose& wMc) {
+  const Pose cMw = wMc.inverse();
+  std::vector<TexturedPlane> planes;
+  for (const SimObject& o : world.objects) {
+    const Pose cMo = cMw * o.wMo;
+    for (const TexturedPlane& f : o.faces) planes.push_back({f.texture, f.width_m, f.height_m, cMo * f.cMp});
+  }
+  return planes;
+}
+
+SyntheticStereoCamera::SyntheticStereoCamera(const StereoRig& rig, const Degradation& deg,
+                                             uint64_t seed, double exposure_s,
+                                             const RenderOptions& render)
+    : rig_(rig), deg_(deg), exposure_s_(exposure_s), render_(render), rng_(seed) {
+  rig_.left.check();
+  rig_.right.check();
+  deg_.check();
+  render_.check();
+  refgrasp::check(std::isfinite(exposure_s) && exposure_s >= 0, "SyntheticStereoCamera.exposure_s",
+                  "must be finite and >= 0");
+}
+
+cv::Mat SyntheticStereoCamera::renderEye(const Intrinsics& cam, const World& world, const Pose& wMc,
+                                         const Twist& cVc, std::vector<Pose>* cMo) {
+  const Pose cMw = wMc.inverse();
+  cMo->clear();
+  // Depth for the blur: the nearest object centre in front of the camera and inside the view.
+  double depth = std::numeric_limits<double>::infinity();
+  for (const SimObject& o : world.objects) {
+    cMo->push_back(cMw * o.wMo);
+    const Eigen::Vector3d X = cMo->back().t;
+    if (X.z() <= render_.near_m) continue;
+    const Eigen::Vector2d p = cam.project(X);
+    if (p.x() >= 0 && p.y() >= 0 && p.x() < cam.width && p.y() < cam.height) depth = std::min(depth, X.z());
+  }
+  if (!std::isfinite(depth)) depth = 2.0;
+
+  cv::Mat img = renderView(cam, worldPlanes(world, wMc), world.background, render_);
+
+  // Image velocity at the principal point (x = y = 0 of the point-feature interaction matrix):
+  // xdot = -vx/Z - wy, ydot = -vy/Z + wx.
+  const double du = cam.fx * (-cVc.v.x() / depth - cVc.w.y()) * exposure_s_;
+  const double dv = cam.fy * (-cVc.v.y() / depth + cVc.w.x()) * exposure_s_;
+  const double bu = du + deg_.motion_blur_px * std::cos(deg_.motion_blur_angle_rad);
+  const double bv = dv + deg_.motion_blur_px * std::sin(deg_.motion_blur_angle_rad);
+  Degradation d = deg_;
+  d.motion_blur_px = std::hypot(bu, bv);
+  d.motion_blur_angle_rad = std::atan2(bv, bu);
+  degrade(img, d, rng_);
+  return img;
+}
+
+SyntheticFrame SyntheticStereoCamera::render(const World& world, const Pose& wMl, const Twist& lVl,
+                                             Seconds stamp) {
+  SyntheticFrame f;
+  f.stamp = stamp;
+  // The right eye moves with the rig: w_r = rRl w_l, v_r = rRl (v_l + w_l x l_t_r).
+  const Pose& lMr = rig_.lMr;
+  Twist rVr;
+  rVr.w = lMr.R.transpose() * lVl.w;
+  rVr.v = lMr.R.transpose() * (lVl.v + lVl.w.cross(lMr.t));
+  f.left = renderEye(rig_.left, world, wMl, lVl, &f.left_cMo);
+  f.right = renderEye(rig_.right, world, wMl * lMr, rVr, &f.right_cMo);
+  return f;
+}
+
+}  // namespace refgrasp::sim
