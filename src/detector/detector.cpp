@@ -99,17 +99,20 @@ PoseResult Detector::estimatePose(int object, const MatchCandidate& match, const
     return estimatePosePaper(match.H, target, camera.K(), opt_.pose_options);
   std::vector<Eigen::Vector3d> X;
   std::vector<Eigen::Vector2d> y;
+  std::vector<double> sigma;
   X.reserve(match.inliers.size());
   y.reserve(match.inliers.size());
+  const double k = opt_.pose_options.keypoint_sigma_per_size;
   for (const auto& c : match.inliers) {
     const cv::Point2f& pr = e.index.features.keypoints[c.ref].pt;
     const auto Xo = target.backProject(Eigen::Vector2d(pr.x, pr.y));
     if (!Xo) continue;
-    const cv::Point2f& ps = scene.keypoints[c.scene].pt;
+    const cv::KeyPoint& ks = scene.keypoints[c.scene];
     X.push_back(*Xo);
-    y.emplace_back(ps.x, ps.y);
+    y.emplace_back(ks.pt.x, ks.pt.y);
+    if (k > 0) sigma.push_back(std::max(0.05, k * ks.size));
   }
-  return estimatePoseRefined(X, y, target, camera.K(), opt_.pose_options);
+  return estimatePoseRefined(X, y, target, camera.K(), opt_.pose_options, sigma);
 }
 
 DetectionResult Detector::detect(const cv::Mat& image, const Intrinsics& camera) const {

@@ -17,6 +17,8 @@ void PoseOptions::check() const {
                   "refined_lm_iterations must be >= 0");
   refgrasp::check(std::isfinite(huber_px) && huber_px >= 0, "PoseOptions",
                   "huber_px must be finite and >= 0");
+  refgrasp::check(std::isfinite(keypoint_sigma_per_size) && keypoint_sigma_per_size >= 0,
+                  "PoseOptions", "keypoint_sigma_per_size must be finite and >= 0");
   refgrasp::check(std::isfinite(min_corner_depth_m) && min_corner_depth_m > 0, "PoseOptions",
                   "min_corner_depth_m must be positive");
 }
@@ -133,10 +135,17 @@ void reprojectionResidual(const Pose& cMo, const Eigen::Vector3d& X_o, const Eig
 
 PoseResult refinePoseLM(const std::vector<Eigen::Vector3d>& points_o,
                         const std::vector<Eigen::Vector2d>& points_px, const Eigen::Matrix3d& K,
-                        const Pose& initial_cMo, int iterations, double huber_px) {
+                        const Pose& initial_cMo, int iterations, double huber_px,
+                        const std::vector<double>& sigma_px) {
   PoseResult res;
   const size_t n = points_o.size();
   if (n < 3 || points_px.size() != n || !initial_cMo.isFinite()) return res;
+  if (!sigma_px.empty() && sigma_px.size() != n) return res;
+  std::vector<double> inv_sigma(n, 1.0);
+  for (size_t i = 0; i < sigma_px.size(); ++i) {
+    if (!(sigma_px[i] > 0) || !std::isfinite(sigma_px[i])) return res;
+    inv_sigma[i] = 1.0 / sigma_px[i];
+  }
   auto weight = [&](double e) { return (huber_px > 0 && e > huber_px) ? huber_px / e : 1.0; };
   // Robust cost: Huber rho(e) = e^2 (e <= d), 2 d e - d^2 (e > d).
   auto cost = [&](const Pose& P, bool* in_front) {
@@ -150,7 +159,7 @@ PoseResult refinePoseLM(const std::vector<Eigen::Vector3d>& points_o,
       }
       Eigen::Vector2d r;
       reprojectionResidual(P, points_o[i], points_px[i], K, &r, nullptr);
-      const double e = r.norm();
+      const double e = r.norm() * inv_sigma[i];
       c += (huber_px > 0 && e > huber_px) ? 2 * huber_px * e - huber_px * huber_px : e * e;
     }
     return c;
@@ -169,7 +178,8 @@ PoseResult refinePoseLM(const std::vector<Eigen::Vector3d>& points_o,
       Eigen::Vector2d r;
       Eigen::Matrix<double, 2, 6> J;
       reprojectionResidual(P, points_o[i], points_px[i], K, &r, &J);
-      const double w = weight(r.norm());
+      const double s2 = inv_sigma[i] * inv_sigma[i];
+      const double w = weight(r.norm() * inv_sigma[i]) * s2;
       A.noalias() += w * J.transpose() * J;
       g.noalias() += w * J.transpose() * r;
     }
@@ -225,7 +235,7 @@ PoseResult estimatePosePaper(const Eigen::Matrix3d& H, const PlanarTarget& targe
 PoseResult estimatePoseRefined(const std::vector<Eigen::Vector3d>& points_o,
                                const std::vector<Eigen::Vector2d>& points_px,
                                const PlanarTarget& target, const Eigen::Matrix3d& K_scene,
-                               const PoseOptions& opt) {
+                               const PoseOptions& opt, const std::vector<double>& sigma_px) {
   PoseResult res;
   const size_t n = points_o.size();
   if (n < 4 || points_px.size() != n) return res;
@@ -254,7 +264,8 @@ PoseResult estimatePoseRefined(const std::vector<Eigen::Vector3d>& points_o,
   const Eigen::Vector3d rv(rvec.at<double>(0), rvec.at<double>(1), rvec.at<double>(2));
   const Eigen::Vector3d tv(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2));
   const Pose cMo = Pose::fromRotationVector(rv, tv) * pMo;
-  res = refinePoseLM(points_o, points_px, K_scene, cMo, opt.refined_lm_iterations, opt.huber_px);
+  res = refinePoseLM(points_o, points_px, K_scene, cMo, opt.refined_lm_iterations, opt.huber_px,
+                     sigma_px);
   if (res.ok && !cornersInFront(res.cMo, target, opt.min_corner_depth_m)) res.ok = false;
   return res;
 }

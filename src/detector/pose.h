@@ -43,7 +43,10 @@ std::optional<PlanarTarget> makePlanarTarget(const Eigen::Matrix3d& K_ref, const
 struct PoseOptions {
   int paper_lm_iterations = 50;    ///< the paper's fixed count
   int refined_lm_iterations = 30;
-  double huber_px = 1.0;           ///< robust loss threshold of the refined method
+  double huber_px = 1.0;           ///< robust loss threshold of the refined method (in sigmas)
+  /// Refined method: 2D point sigma = keypoint_sigma_per_size x SIFT keypoint size (scene px),
+  /// since SIFT localisation error grows with the keypoint's scale. 0: every point 1 px.
+  double keypoint_sigma_per_size = 0.1;
   double min_corner_depth_m = 1e-3;
   void check() const;
 };
@@ -66,17 +69,20 @@ PoseResult estimatePosePaper(const Eigen::Matrix3d& H, const PlanarTarget& targe
                              const Eigen::Matrix3d& K_scene, const PoseOptions& opt);
 
 /// Refined method: IPPE (cv::solvePnP) over all 3D-2D pairs (object frame points on the pattern
-/// plane, undistorted scene px), then Huber-robust LM over the same pairs.
+/// plane, undistorted scene px), then Huber-robust LM over the same pairs. sigma_px: expected
+/// localisation error of each 2D point (empty = 1 px each); residuals are divided by it.
 PoseResult estimatePoseRefined(const std::vector<Eigen::Vector3d>& points_o,
                                const std::vector<Eigen::Vector2d>& points_px,
                                const PlanarTarget& target, const Eigen::Matrix3d& K_scene,
-                               const PoseOptions& opt);
+                               const PoseOptions& opt, const std::vector<double>& sigma_px = {});
 
 /// Levenberg-Marquardt on reprojection error. Update: R <- exp([dw]x) R, t <- t + dt.
-/// huber_px <= 0: plain least squares. Returns ok=false if a point ends up behind the camera.
+/// Residual i is divided by sigma_px[i] (empty: 1); huber (in those units) <= 0: plain least
+/// squares. rms_px is the unweighted RMS. Returns ok=false if a point ends up behind the camera.
 PoseResult refinePoseLM(const std::vector<Eigen::Vector3d>& points_o,
                         const std::vector<Eigen::Vector2d>& points_px, const Eigen::Matrix3d& K,
-                        const Pose& initial_cMo, int iterations, double huber_px);
+                        const Pose& initial_cMo, int iterations, double huber,
+                        const std::vector<double>& sigma_px = {});
 
 /// Residual r = project(K, cMo * X_o) - y (pixels) and its Jacobian with respect to the
 /// update (dw, dt) above, columns [dw_x dw_y dw_z dt_x dt_y dt_z].
