@@ -1,0 +1,350 @@
+#include "robot/sim_enon.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/error.h"
+
+namespace refgrasp::sim {
+
+using robot::GripperCommand;
+using robot::GripperPhase;
+using robot::HeadMode;
+using robot::ReturnType;
+
+namespace {
+
+// Event times closer than this are the same instant (avoids zero-length integration steps).
+constexpr double kTimeEps = 1e-12;
+
+uint64_t splitmix64(uint64_t x) {
+  x += 0x9E3779B97F4A7C15ull;
+  x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
+  x = (x ^ (x >> 27)) * 0x94D049BB133111EBull;
+  return x ^ (x >> 31);
+}
+
+Pose interpolate(const Pose& a, const Pose& b, double s) {
+  const Eigen::Quaterniond qa(a.R), qb(b.R);
+  return Pose(qa.slerp(s, qb).toRotationMatrix(), (1 - s) * a.t + s * b.t);
+}
+
+}  // namespace
+
+// ---- camera ------------------------------------------------------------------------------------
+
+class SimStereoCamera : public robot::StereoCameraHardware {
+ public:
+  explicit SimStereoCamera(SimEnon* sim)
+      : sim_(sim),
+        camera_(sim->model_.head.rig, sim->scenario_.camera,
+                splitmix64(sim->scenario_.seed ^ 0xCA3Eull), sim->scenario_.exposure_s) {}
+
+  const StereoRig& rig() const override { return sim_->model_.head.rig; }
+
+  ReturnType grab(Seconds time, std::optional<robot::StereoFrame>* frame) override {
+    frame->reset();
+    if (!sim_->active_) return ReturnType::kError;
+    const double fps = sim_->model_.head.frame_rate_hz;
+    // Newest capture whose delivery (capture + frame delay) is due by `time`.
+    const long k = static_cast<long>(
+        std::floor((time - sim_->scenario_.faults.frame_delay_s) * fps + 1e-9));
+    if (k < 0 || k <= last_index_) return ReturnType::kOk;
+    last_index_ = k;
+    if (sim_->frameDropped(k)) return ReturnType::kOk;
+    const Seconds t = static_cast<double>(k) / fps;
+    const SimEnon::Snapshot now = sim_->snapshotAt(t);
+    // Camera velocity over the exposure, from the true poses half an exposure either side.
+    const double half = 0.5 * std::max(sim_->scenario_.exposure_s, 1e-3);
+    const SimEnon::Snapshot a = sim_->snapshotAt(t - half), b = sim_->snapshotAt(t + half);
+    const Pose aMb = a.wMl.inverse() * b.wMl;
+    Twist lVl;
+    lVl.v = aMb.t / (2 * half);
+    lVl.w = aMb.rotationVector() / (2 * half);
+    World world = sim_->world_;
+    for (size_t i = 0; i < world.objects.size(); ++i) world.objects[i].wMo = now.wMo[i];
+    sim_->last_frame_ = camera_.render(world, now.wMl, lVl, t);
+    robot::StereoFrame out;
+    out.left = sim_->last_frame_->left;
+    out.right = sim_->last_frame_->right;
+    out.stamp = t;
+    out.index = k;
+    *frame = std::move(out);
+    return ReturnType::kOk;
+  }
+
+ private:
+  SimEnon* sim_;
+  SyntheticStereoCamera camera_;
+  long last_index_ = -1;
+};
+
+// ---- SimEnon -----------------------------------------------------------------------------------
+
+SimEnon::SimEnon(const robot::EnonModel& model, const Scenario& scenario)
+    : model_(model),
+      kin_(model.arm),
+      scenario_(scenario),
+      world_(scenario.world),
+      odom_rng_(splitmix64(scenario.seed ^ 0x0D0Dull)) {
+  model_.check();
+  const Faults& f = scenario_.faults;
+  if (!f.stuck_joint.empty()) {
+    std::vector<std::string> names = {"head.pan", "head.tilt"};
+    for (const auto& j : model_.arm.joints) names.push_back("arm." + j.name);
+    if (std::find(names.begin(), names.end(), f.stuck_joint) == names.end()) {
+      std::string known;
+      for (const auto& n : names) known += (known.empty() ? "" : ", ") + n;
+      throw ConfigError(scenario_.path, "faults.stuck_joint",
+                        "unknown joint '" + f.stuck_joint + "' (known: " + known + ")");
+    }
+  }
+  base_true_ = {scenario_.start_x_m, scenario_.start_y_m, scenario_.start_theta_rad};
+  base_odom_ = base_true_;
+  q_ = Eigen::VectorXd::Zero(kin_.dof());
+  for (int i = 0; i < kin_.dof(); ++i) {
+    const auto& l = model_.arm.joints[static_cast<size_t>(i)].limits;
+    q_[i] = std::clamp(0.0, l.min_rad, l.max_rad);
+  }
+  qdot_ = Eigen::VectorXd::Zero(kin_.dof());
+  active_cmd_ = robot::RobotCommand::zero(kin_.dof());
+  pushSnapshot();
+}
+
+SimEnon::~SimEnon() = default;
+
+ReturnType SimEnon::configure() {
+  configured_ = true;
+  return ReturnType::kOk;
+}
+
+ReturnType SimEnon::activate() {
+  if (!configured_) return ReturnType::kError;
+  active_ = true;
+  return ReturnType::kOk;
+}
+
+ReturnType SimEnon::deactivate() {
+  active_ = false;
+  queue_.clear();
+  active_cmd_ = robot::RobotCommand::zero(kin_.dof());
+  v_ = w_ = pan_rate_ = tilt_rate_ = 0;
+  qdot_.setZero();
+  return ReturnType::kOk;
+}
+
+std::unique_ptr<robot::StereoCameraHardware> SimEnon::makeCamera() {
+  return std::make_unique<SimStereoCamera>(this);
+}
+
+Pose SimEnon::wMc() const { return wMb() * robot::headCameraPose(model_.head, pan_, tilt_); }
+Pose SimEnon::wMe() const { return wMb() * kin_.forward(q_); }
+
+bool SimEnon::frameDropped(long index) const {
+  const double p = scenario_.faults.frame_drop_probability;
+  if (p <= 0) return false;
+  const uint64_t h = splitmix64(scenario_.seed ^ splitmix64(static_cast<uint64_t>(index)));
+  return static_cast<double>(h >> 11) * 0x1.0p-53 < p;
+}
+
+void SimEnon::setJointPositions(const Eigen::VectorXd& q) {
+  if (q.size() != kin_.dof()) return;
+  for (int i = 0; i < kin_.dof(); ++i) {
+    const auto& l = model_.arm.joints[static_cast<size_t>(i)].limits;
+    q_[i] = std::clamp(q[i], l.min_rad, l.max_rad);
+  }
+  pushSnapshot();
+}
+
+bool SimEnon::stuck(const std::string& joint) const {
+  const Faults& f = scenario_.faults;
+  return f.stuck_joint == joint && time_ >= f.stuck_after_s - kTimeEps;
+}
+
+ReturnType SimEnon::write(Seconds time, Seconds /*period*/, const robot::RobotCommand& cmd,
+                          Seconds valid_for_s) {
+  if (!active_) return ReturnType::kError;
+  if (!cmd.isFinite() || cmd.arm_qdot_radps.size() != kin_.dof()) return ReturnType::kError;
+  const Seconds due = time + scenario_.faults.command_latency_s;
+  // Commands reach the controller in order; a later write never overtakes an earlier one.
+  const Seconds last_due = queue_.empty() ? -1e300 : queue_.back().due;
+  queue_.push_back({std::max(due, last_due), cmd, valid_for_s});
+  if (scenario_.faults.command_latency_s <= 0) applyDue(time_);
+  return ReturnType::kOk;
+}
+
+void SimEnon::applyDue(Seconds now) {
+  while (!queue_.empty() && queue_.front().due <= now + kTimeEps) {
+    const Queued q = queue_.front();
+    queue_.pop_front();
+    active_cmd_ = q.cmd;
+    active_until_ = q.due + q.valid_for;
+    const Seconds start = std::max(q.due, now);
+    if (q.cmd.gripper == GripperCommand::kClose &&
+        (gripper_ == GripperPhase::kOpen || gripper_ == GripperPhase::kOpening)) {
+      gripper_ = GripperPhase::kClosing;
+      gripper_done_ = start + model_.gripper.close_time_s;
+    } else if (q.cmd.gripper == GripperCommand::kOpen && gripper_ != GripperPhase::kOpen &&
+               gripper_ != GripperPhase::kOpening) {
+      held_ = -1;  // released where it is
+      gripper_ = GripperPhase::kOpening;
+      gripper_done_ = start + model_.gripper.open_time_s;
+    }
+  }
+  if (now >= active_until_ - kTimeEps) {
+    // The command timed out on the controller side: zero velocity, head and arm hold.
+    const GripperCommand g = active_cmd_.gripper;
+    active_cmd_ = robot::RobotCommand::zero(kin_.dof());
+    active_cmd_.gripper = g;
+  }
+  finishGripper(now);
+}
+
+void SimEnon::finishGripper(Seconds now) {
+  if (now < gripper_done_ - kTimeEps) return;
+  if (gripper_ == GripperPhase::kOpening) gripper_ = GripperPhase::kOpen;
+  if (gripper_ != GripperPhase::kClosing) return;
+  // Closing finished: hold the nearest object whose grasp frame is within tolerance.
+  const Pose e = wMe();
+  int best = -1;
+  double best_dist = 0;
+  for (size_t i = 0; i < world_.objects.size(); ++i) {
+    const Pose g = world_.objects[i].wMo * world_.objects[i].oMg;
+    const double d = translationError(e, g);
+    if (d <= model_.gripper.grasp_tolerance_m &&
+        rotationError(e, g) <= model_.gripper.grasp_tolerance_rad &&
+        (best < 0 || d < best_dist)) {
+      best = static_cast<int>(i);
+      best_dist = d;
+    }
+  }
+  held_ = best;
+  if (best >= 0) {
+    eMo_held_ = e.inverse() * world_.objects[static_cast<size_t>(best)].wMo;
+    gripper_ = GripperPhase::kHolding;
+  } else {
+    gripper_ = GripperPhase::kClosedEmpty;
+  }
+}
+
+void SimEnon::integrate(Seconds dt) {
+  if (dt <= 0) return;
+  const robot::RobotCommand& c = active_cmd_;
+  // Base: exact arc; odometry integrates a noisy copy of the same increment.
+  double v = c.base_v_mps, w = c.base_w_radps;
+  robot::clipBaseVelocity(model_.base, &v, &w);
+  v_ = v;
+  w_ = w;
+  base_true_ = robot::integrateUnicycle(base_true_, v, w, dt);
+  const Faults& f = scenario_.faults;
+  double ds = v * dt, dth = w * dt;
+  if (f.odom_noise_m_per_m > 0 || f.odom_noise_rad_per_rad > 0) {
+    std::normal_distribution<double> n01(0.0, 1.0);
+    ds += f.odom_noise_m_per_m * std::sqrt(std::abs(ds)) * n01(odom_rng_);
+    dth += f.odom_noise_rad_per_rad * std::sqrt(std::abs(dth)) * n01(odom_rng_);
+  }
+  base_odom_ = robot::integrateUnicycle(base_odom_, ds / dt, dth / dt, dt);
+
+  // Head.
+  const double pan0 = pan_, tilt0 = tilt_;
+  const auto& h = model_.head;
+  if (!stuck("head.pan"))
+    pan_ = c.head_mode == HeadMode::kPosition ? robot::moveJointTowards(h.pan, pan_, c.pan, dt)
+                                              : robot::integrateJoint(h.pan, pan_, c.pan, dt);
+  if (!stuck("head.tilt"))
+    tilt_ = c.head_mode == HeadMode::kPosition
+                ? robot::moveJointTowards(h.tilt, tilt_, c.tilt, dt)
+                : robot::integrateJoint(h.tilt, tilt_, c.tilt, dt);
+  pan_rate_ = (pan_ - pan0) / dt;
+  tilt_rate_ = (tilt_ - tilt0) / dt;
+
+  // Arm.
+  for (int i = 0; i < kin_.dof(); ++i) {
+    const auto& j = model_.arm.joints[static_cast<size_t>(i)];
+    const double q0 = q_[i];
+    if (!stuck("arm." + j.name)) q_[i] = robot::integrateJoint(j.limits, q_[i], c.arm_qdot_radps[i], dt);
+    qdot_[i] = (q_[i] - q0) / dt;
+  }
+  if (held_ >= 0) world_.objects[static_cast<size_t>(held_)].wMo = wMe() * eMo_held_;
+}
+
+ReturnType SimEnon::read(Seconds time, Seconds /*period*/, robot::RobotState* state) {
+  if (!configured_) return ReturnType::kError;
+  if (active_) {
+    applyDue(time_);
+    while (time_ < time - kTimeEps) {
+      Seconds next = time;
+      if (!queue_.empty()) next = std::min(next, queue_.front().due);
+      if (active_until_ > time_ + kTimeEps) next = std::min(next, active_until_);
+      const Faults& f = scenario_.faults;
+      if (!f.stuck_joint.empty() && f.stuck_after_s > time_ + kTimeEps)
+        next = std::min(next, f.stuck_after_s);
+      if ((gripper_ == GripperPhase::kClosing || gripper_ == GripperPhase::kOpening) &&
+          gripper_done_ > time_ + kTimeEps)
+        next = std::min(next, gripper_done_);
+      integrate(next - time_);
+      time_ = next;
+      applyDue(time_);
+    }
+    if (time > time_) time_ = time;
+  }
+  pushSnapshot();
+
+  state->stamp = time_;
+  state->wMb_odom = base_odom_.toPose();
+  state->base_v_mps = v_;
+  state->base_w_radps = w_;
+  state->pan_rad = pan_;
+  state->tilt_rad = tilt_;
+  state->pan_radps = pan_rate_;
+  state->tilt_radps = tilt_rate_;
+  state->arm_q_rad = q_;
+  state->arm_qdot_radps = qdot_;
+  state->gripper = gripper_;
+  state->held_object = held_ >= 0 ? world_.objects[static_cast<size_t>(held_)].name : "";
+  return ReturnType::kOk;
+}
+
+void SimEnon::pushSnapshot() {
+  Snapshot s;
+  s.t = time_;
+  s.wMl = wMc();
+  for (const auto& o : world_.objects) s.wMo.push_back(o.wMo);
+  if (!history_.empty() && history_.back().t >= s.t - kTimeEps) history_.pop_back();
+  history_.push_back(std::move(s));
+  // Enough history for the frame delay and the exposure.
+  const double keep = 1.0 + scenario_.faults.frame_delay_s + scenario_.exposure_s;
+  while (history_.size() > 2 && history_.front().t < time_ - keep) history_.pop_front();
+}
+
+SimEnon::Snapshot SimEnon::snapshotAt(Seconds t) const {
+  if (t <= history_.front().t) return history_.front();
+  if (t >= history_.back().t) return history_.back();
+  const auto it = std::lower_bound(history_.begin(), history_.end(), t,
+                                   [](const Snapshot& s, Seconds x) { return s.t < x; });
+  const Snapshot& b = *it;
+  const Snapshot& a = *(it - 1);
+  const double s = (t - a.t) / (b.t - a.t);
+  Snapshot out;
+  out.t = t;
+  out.wMl = interpolate(a.wMl, b.wMl, s);
+  for (size_t i = 0; i < a.wMo.size(); ++i) out.wMo.push_back(interpolate(a.wMo[i], b.wMo[i], s));
+  return out;
+}
+
+}  // namespace refgrasp::sim
+
+namespace refgrasp::robot {
+
+std::unique_ptr<Robot> makeRobot(const EnonModel& model, const std::string& backend,
+                                 const sim::Scenario* scenario) {
+  if (backend == "sim") {
+    if (!scenario) throw ConfigError(model.path, "backend", "'sim' needs a scenario");
+    auto hw = std::make_unique<sim::SimEnon>(model, *scenario);
+    auto cam = hw->makeCamera();
+    return std::make_unique<Robot>(model, std::move(hw), std::move(cam));
+  }
+  throw ConfigError(model.path, "backend", "unknown backend '" + backend + "' (available: sim)");
+}
+
+}  // namespace refgrasp::robot
