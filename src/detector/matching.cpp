@@ -400,6 +400,10 @@ bool makeCandidate(const Context& cx, const std::vector<Correspondence>& matches
   const HomographyResult hr = estimateHomography(a, b, homographyOptions(cx.opt));
   if (!hr.ok || static_cast<int>(hr.inliers.size()) < cx.opt.min_inliers) return false;
   if (!homographyPlausible(hr.H, cx.ref.hull_px, kMinAreaPx2)) return false;
+  std::vector<cv::Point2f> in, hull;
+  for (int k : hr.inliers) in.push_back(cx.ref.features.keypoints[matches[k].ref].pt);
+  cv::convexHull(in, hull);
+  if (cv::contourArea(hull) < cx.opt.min_inlier_spread * cx.ref.feature_hull_area_px2) return false;
   c->H = hr.H;
   c->inliers.clear();
   double sum = 0;
@@ -644,6 +648,8 @@ void MatchOptions::check() const {
   refgrasp::check(max_instances >= 1, "MatchOptions.max_instances", "must be >= 1");
   refgrasp::check(std::isfinite(max_descriptor_distance) && max_descriptor_distance > 0,
                   "MatchOptions.max_descriptor_distance", "must be > 0");
+  refgrasp::check(min_inlier_spread >= 0 && min_inlier_spread < 1, "MatchOptions.min_inlier_spread",
+                  "must be in [0, 1)");
 }
 
 ReferenceIndex buildReferenceIndex(Features f, const std::vector<Vec2>& polygon,
@@ -697,6 +703,12 @@ ReferenceIndex buildReferenceIndex(Features f, const std::vector<Vec2>& polygon,
     f.descriptors.row(keep[k]).copyTo(ri.features.descriptors.row(static_cast<int>(k)));
   }
   ri.descriptors_s16 = toS16(ri.features.descriptors, &ri.descriptor_norm2);
+  if (!ri.features.keypoints.empty()) {
+    std::vector<cv::Point2f> pts, fh;
+    for (const auto& k : ri.features.keypoints) pts.push_back(k.pt);
+    cv::convexHull(pts, fh);
+    ri.feature_hull_area_px2 = cv::contourArea(fh);
+  }
   ri.descriptors_lo_s8.create(ri.descriptors_s16.size(), CV_8S);
   ri.descriptors_hi_s8.create(ri.descriptors_s16.size(), CV_8S);
   ri.has_hi.assign(ri.descriptors_s16.rows, 0);

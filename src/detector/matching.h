@@ -35,6 +35,9 @@ struct MatchOptions {
   /// Local matches farther than this in descriptor space are never accepted (OpenCV SIFT
   /// descriptors have L2 norm ~512; unrelated features are typically 350-450 apart).
   double max_descriptor_distance = 300;
+  /// An instance's inliers must spread over at least this fraction of the area spanned by all
+  /// reference features (convex hulls, reference px): a shared word or logo is not the object.
+  double min_inlier_spread = 0.05;
   uint64_t seed = 0;
   /// Throws std::invalid_argument on nonsense.
   void check() const;
@@ -48,6 +51,7 @@ struct ReferenceIndex {
   std::vector<Eigen::Vector2d> hull_px;       ///< its convex hull (used for plausibility/overlap)
   Eigen::Vector2d centre_px = Eigen::Vector2d::Zero();  ///< pattern centre c_r (polygon centroid)
   double diagonal_px = 0;                     ///< diagonal of the polygon's bounding box
+  double feature_hull_area_px2 = 0;           ///< area of the convex hull of the kept features
   std::vector<std::vector<int>> neighbours;   ///< per feature: nearest features (reference px), self first
   cv::Mat descriptors_s16;                    ///< CV_16S copy (OpenCV SIFT values are integers 0..255)
   std::vector<int> descriptor_norm2;          ///< squared L2 norms of descriptors_s16 rows

@@ -177,6 +177,22 @@ TEST(Matching, NothingOnClutterAlone) {
   }
 }
 
+TEST(Matching, SharedFragmentIsNotTheObject) {
+  // A 70x70 px piece of the target (4% of it) pasted at its native scale into clutter: a real
+  // local match, but not the object. Rejected by the inlier-spread rule, accepted without it.
+  const cv::Mat tex = loadMedia("targets/magazine.png");
+  cv::Mat img = testing::clutterBackground(11);
+  tex(cv::Rect(150, 100, 70, 70)).copyTo(img(cv::Rect(300, 200, 70, 70)));
+  MatchOptions opt;
+  const ReferenceIndex ref = referenceFor(tex, opt);
+  EXPECT_TRUE(run(ref, img, opt).instances.empty());
+  opt.min_inlier_spread = 0;
+  const MatchResult loose = run(ref, img, opt);
+  ASSERT_EQ(loose.instances.size(), 1u);
+  // The fragment is where it was pasted: texture (150,100) -> image (300,200).
+  EXPECT_LT((applyHomography(loose.instances[0].H, Vec2(185, 135)) - Vec2(335, 235)).norm(), 1.0);
+}
+
 TEST(Matching, DeterministicForTheSameInput) {
   const Intrinsics cam = sceneCamera();
   const cv::Mat tex = loadMedia("targets/poster_concert.png");
@@ -210,6 +226,7 @@ TEST(Matching, ReferenceIndexKeepsStrongestInsidePolygon) {
   EXPECT_EQ(ri.features.descriptors.rows, 150);
   EXPECT_THROW(buildReferenceIndex(f, {Vec2(0, 0), Vec2(1, 1)}, opt), std::invalid_argument);
   EXPECT_THROW(buildReferenceIndex(f, {Vec2(0, 0), Vec2(1, 1), Vec2(2, 2)}, opt), std::invalid_argument);
+  EXPECT_THROW(buildReferenceIndex(f, {Vec2(0, 0), Vec2(std::nan(""), 1), Vec2(0, 9)}, opt), std::invalid_argument);
 }
 
 TEST(Matching, OptionsCheckRejectsNonsense) {
@@ -231,6 +248,7 @@ TEST(Matching, OptionsCheckRejectsNonsense) {
   bad([](MatchOptions& o) { o.ransac_reproj_px = std::nan(""); });
   bad([](MatchOptions& o) { o.max_instances = 0; });
   bad([](MatchOptions& o) { o.max_descriptor_distance = -1; });
+  bad([](MatchOptions& o) { o.min_inlier_spread = 1; });
   // matchObject checks its options too, and tolerates empty inputs.
   MatchOptions o;
   const ReferenceIndex empty = buildReferenceIndex(Features{}, {Vec2(0, 0), Vec2(9, 0), Vec2(0, 9)}, o);
