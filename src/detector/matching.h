@@ -23,7 +23,7 @@ struct MatchOptions {
   double global_ratio = 0.8;           ///< Lowe ratio for global matches (seeds / baseline)
   double local_ratio = 0.5;            ///< ratio between best and second-best local candidate
   /// Local search radius = factor x expected localisation error of the hypothesis (see
-  /// matching.cpp: expected = 2 px + 0.1 x distance from the seed, in scene px).
+  /// matchObject: 2 px + 0.1 x scene distance from the seed under T^k).
   double search_radius_factor = 2.0;
   double orientation_tolerance_rad = M_PI / 3;  ///< |o_s - predicted o| bound
   double scale_tolerance = 0.5;        ///< |s_s - predicted s| <= scale_tolerance * predicted s
@@ -98,6 +98,38 @@ std::vector<NearestTwo> nearestTwo(const ReferenceIndex& ref, const Features& sc
 
 /// Finds up to opt.max_instances instances of the reference in the scene. grid must index
 /// scene.keypoints. An empty result is the normal "not found".
+///
+/// kRatio: global matches (scene -> reference nearest neighbour, ratio < global_ratio), robust
+/// homography, accepted with >= min_inliers; for more instances remove the inliers and repeat.
+///
+/// kPaper (Section III-B):
+///  1. Global matches as above seed hypotheses T^k (eq. 1-2: scale s' = size_s/size_r, rotation
+///     o' = angle_s - angle_r, T^k(x) = s'R(o')(x - x_r) + x_s). Scene features whose two nearest
+///     reference features are both close but too alike for the ratio test (twins in repeated or
+///     symmetric patterns) seed one hypothesis per twin, tried after all unambiguous seeds.
+///     Seeds are ordered by the size of their Hough cluster (predicted centre, scale octave,
+///     30 degree orientation), then by ratio.
+///  2. Local search for a hypothesis: each reference feature is predicted in the scene; among
+///     scene features within radius = search_radius_factor x expected error, with orientation
+///     within orientation_tolerance_rad and size within scale_tolerance x predicted size, the
+///     descriptor-nearest is taken if it is closer than max_descriptor_distance and passes
+///     local_ratio against the second. "Expected error" of T^k is 2 px + 0.1 x the scene
+///     distance from the seed (one keypoint's scale/orientation error and perspective grow
+///     with distance). The search grows: a quick test on the seed's 40 nearest detectable
+///     reference neighbours (>= 4 local matches), pass 1 on its 200 nearest (>= 6), then two
+///     passes over all features under the homography fitted to the previous pass (expected
+///     error max(2 px, rms) + 0.03 x distance from the seed, then max(2 px, rms)).
+///  3. The last pass's matches give a robust homography; it is a candidate when it has
+///     >= min_inliers inliers, a plausible H (homographyPlausible on the pattern hull) and
+///     inliers spanning >= min_inlier_spread of the reference. Its score is eq. 3.
+///  4. Collapse: seeds whose scene feature is an inlier of a candidate, or that a candidate's H
+///     already explains (within 2 x ransac_reproj_px), are not tried again. At most
+///     max_hypotheses seeds are tried; once max_instances candidates exist, lone seeds (and
+///     twin seeds, unless every candidate came from twins) end the search.
+///  5. Selection: a candidate overlapping (> 25% of the smaller projected pattern) another with
+///     more than twice its inliers is dropped, so few matches never beat many; the rest are
+///     ranked by eq. 3 (lower first) and taken greedily without overlap, scene features used
+///     once (a candidate losing features is re-fitted and re-checked).
 MatchResult matchObject(const ReferenceIndex& ref, const Features& scene, const GridIndex& grid,
                         const MatchOptions& opt);
 
