@@ -8,7 +8,6 @@
 #include <Eigen/Core>
 #include <cmath>
 #include <cstdint>
-#include <memory>
 #include <opencv2/core.hpp>
 #include <vector>
 
@@ -75,7 +74,8 @@ struct Correspondence {
 struct MatchCandidate {
   std::vector<Correspondence> inliers;  ///< homography inliers
   Eigen::Matrix3d H = Eigen::Matrix3d::Identity();  ///< reference px -> scene px: x_s ~ H x_r
-  double score = 0;  ///< eq. 3 over the inliers (mean image distance x descriptor distance), lower is better
+  /// eq. 3 over the inliers: mean of |x_s - H x_r| (px) x descriptor distance; lower is better.
+  double score = 0;
 };
 
 struct MatchResult {
