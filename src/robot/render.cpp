@@ -154,10 +154,12 @@ std::shared_ptr<const DistortionMap> distortionMap(const Intrinsics& cam) {
   return m;
 }
 
-// Coverage (0..255) of a convex polygon over the pixels of `roi`. Anti-aliased: the product over
-// edges of clamp(0.5 + signed distance of the pixel centre to the edge): exact area for a single
-// axis-aligned edge, unbiased for oblique ones. Otherwise a pixel is in when its centre is.
-cv::Mat coverageMask(const Poly2& poly, const cv::Rect& roi, bool antialias) {
+// Edges of a convex polygon as signed distances nx*x + ny*y + c (> 0 inside), in ROI coordinates.
+struct Edge {
+  double nx, ny, c;
+};
+
+std::vector<Edge> polygonEdges(const Poly2& poly, const cv::Rect& roi) {
   double area2 = 0;
   for (size_t i = 0; i < poly.size(); ++i) {
     const auto& a = poly[i];
@@ -165,40 +167,34 @@ cv::Mat coverageMask(const Poly2& poly, const cv::Rect& roi, bool antialias) {
     area2 += a.x() * b.y() - a.y() * b.x();
   }
   const double orient = area2 >= 0 ? 1.0 : -1.0;
-  struct Edge {
-    double nx, ny, c;  // signed distance = nx * x + ny * y + c, > 0 inside
-  };
   std::vector<Edge> edges;
   for (size_t i = 0; i < poly.size(); ++i) {
     const Eigen::Vector2d a = poly[i] - Eigen::Vector2d(roi.x, roi.y);
-    const Eigen::Vector2d b = poly[(i + 1) % poly.size()] - Eigen::Vector2d(roi.x, roi.y);
-    const Eigen::Vector2d d = b - a;
+    const Eigen::Vector2d d = poly[(i + 1) % poly.size()] - poly[i];
     const double len = d.norm();
     if (len < 1e-12) continue;
     const double nx = -orient * d.y() / len, ny = orient * d.x() / len;
     edges.push_back({nx, ny, -(nx * a.x() + ny * a.y())});
   }
-  cv::Mat mask(roi.size(), CV_8U);
-  for (int y = 0; y < roi.height; ++y) {
-    uchar* m = mask.ptr<uchar>(y);
-    for (int x = 0; x < roi.width; ++x) {
-      double cov = 1;
-      for (const Edge& e : edges) {
-        const double dist = e.nx * x + e.ny * y + e.c;
-        if (antialias) {
-          if (dist < 0.5) cov *= std::max(0.0, 0.5 + dist);
-        } else if (dist < 0) {
-          cov = 0;
-        }
-        if (cov == 0) break;
-      }
-      m[x] = static_cast<uchar>(std::lround(cov * 255));
-    }
-  }
-  return mask;
+  return edges;
 }
 
-// Draws one plane into `canvas` (an ideal pinhole image with intrinsic matrix K).
+// Columns [lo, hi] of row y where every edge distance is >= k (lo > hi: none).
+void rowSpan(const std::vector<Edge>& edges, double y, double k, int width, int* lo, int* hi) {
+  double l = 0, h = width - 1;
+  for (const Edge& e : edges) {
+    const double cy = e.ny * y + e.c;
+    if (e.nx > 1e-12)
+      l = std::max(l, (k - cy) / e.nx);
+    else if (e.nx < -1e-12)
+      h = std::min(h, (k - cy) / e.nx);
+    else if (cy < k)
+      h = -1;
+  }
+  *lo = static_cast<int>(std::ceil(std::max(l, -1.0)));
+  *hi = static_cast<int>(std::floor(std::min(h, static_cast<double>(width))));
+}
+
 // inv_depth: per-pixel 1/z of the nearest plane drawn so far (0 = nothing): a depth test.
 void drawPlane(cv::Mat& canvas, cv::Mat& inv_depth, const Eigen::Matrix3d& K, const TexturedPlane& p,
                const RenderOptions& opt) {
@@ -257,40 +253,64 @@ void drawPlane(cv::Mat& canvas, cv::Mat& inv_depth, const Eigen::Matrix3d& K, co
   const cv::Mat tex = level == 0 ? p.texture : pyramidCache().get(p.texture, level)[level];
   // pyrDown centres level-L pixel i on level-0 pixel 2^L i.
   const double s = std::ldexp(1.0, level);
-  Eigen::Matrix3d roiFromTex = H * Eigen::DiagonalMatrix<double, 3>(s, s, 1);
-  roiFromTex.row(0) -= roi.x * roiFromTex.row(2);
-  roiFromTex.row(1) -= roi.y * roiFromTex.row(2);
-  const Eigen::Matrix3d texFromRoi = roiFromTex.inverse();
-  cv::Mat M(3, 3, CV_64F);
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) M.at<double>(r, c) = texFromRoi(r, c);
-  cv::Mat warped;
-  cv::warpPerspective(tex, warped, M, roi.size(), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP,
-                      cv::BORDER_REPLICATE);
+  // Canvas pixel -> level-L texture pixel; sampled bilinearly, only where the plane is drawn.
+  const Eigen::Matrix3d M = (H * Eigen::DiagonalMatrix<double, 3>(s, s, 1)).inverse();
+  const int tw = tex.cols, th = tex.rows;
+  // Homogeneous texture coordinates (a, b, w) are linear along a row; sample at a / w, b / w.
+  const auto sample = [&](double a, double b, double w) {
+    // Clamping replicates the border texels (the coverage mask cuts the plane's outline).
+    const double inv = 1.0 / w;
+    const double u = std::clamp(a * inv, 0.0, tw - 1.0), v = std::clamp(b * inv, 0.0, th - 1.0);
+    const int iu = static_cast<int>(u), iv = static_cast<int>(v);
+    const int iu1 = std::min(iu + 1, tw - 1), iv1 = std::min(iv + 1, th - 1);
+    const float fu = static_cast<float>(u - iu), fv = static_cast<float>(v - iv);
+    const uchar* r0 = tex.ptr<uchar>(iv);
+    const uchar* r1 = tex.ptr<uchar>(iv1);
+    const float top = r0[iu] + fu * (r0[iu1] - r0[iu]);
+    const float bottom = r1[iu] + fu * (r1[iu1] - r1[iu]);
+    return static_cast<int>(top + fv * (bottom - top) + 0.5f);
+  };
 
-  const cv::Mat mask = coverageMask(poly, roi, opt.antialias_edges);
-
+  // Coverage: with anti-aliasing, the product over edges of clamp(0.5 + signed distance of the
+  // pixel centre): exact area for a single axis-aligned edge, unbiased for oblique ones; without,
+  // a pixel is in when its centre is. Inside the row span where every distance is >= 0.5 (or 0)
+  // coverage is 1.
+  const std::vector<Edge> edges = polygonEdges(poly, roi);
+  const double k_any = opt.antialias_edges ? -0.5 : 0.0, k_full = opt.antialias_edges ? 0.5 : 0.0;
   // On the plane n.X = n.t, the ray X = z K^-1 (u, v, 1) has 1/z = n^T K^-1 (u, v, 1) / n.t,
   // linear in the pixel coordinates.
   const Eigen::Vector3d g = (K.inverse().transpose() * cMp.R.col(2)) / cMp.R.col(2).dot(cMp.t);
   cv::Mat dst = canvas(roi), zbuf = inv_depth(roi);
   for (int y = 0; y < roi.height; ++y) {
-    const uchar* a = mask.ptr<uchar>(y);
-    const uchar* src = warped.ptr<uchar>(y);
+    int x0, x1, f0, f1;
+    rowSpan(edges, y, k_any, roi.width, &x0, &x1);
+    rowSpan(edges, y, k_full, roi.width, &f0, &f1);
+    x0 = std::max(x0, 0);
+    x1 = std::min(x1, roi.width - 1);
     uchar* d = dst.ptr<uchar>(y);
     float* zb = zbuf.ptr<float>(y);
-    const double row = g.y() * (y + roi.y) + g.z();
-    for (int x = 0; x < roi.width; ++x) {
-      if (a[x] == 0) continue;
-      const float iz = static_cast<float>(g.x() * (x + roi.x) + row);
+    const double Y = y + roi.y, X0 = x0 + roi.x;
+    double iz = g.x() * X0 + g.y() * Y + g.z();
+    double a = M(0, 0) * X0 + M(0, 1) * Y + M(0, 2);
+    double b = M(1, 0) * X0 + M(1, 1) * Y + M(1, 2);
+    double w = M(2, 0) * X0 + M(2, 1) * Y + M(2, 2);
+    for (int x = x0; x <= x1; ++x, iz += g.x(), a += M(0, 0), b += M(1, 0), w += M(2, 0)) {
       if (iz < zb[x]) continue;  // behind what is already there
-      if (a[x] == 255) {
-        d[x] = src[x];
-        zb[x] = iz;
-      } else {
-        d[x] = static_cast<uchar>((src[x] * a[x] + d[x] * (255 - a[x]) + 127) / 255);
-        if (a[x] >= 128) zb[x] = iz;
+      const int val = sample(a, b, w);
+      if (x >= f0 && x <= f1) {
+        d[x] = static_cast<uchar>(val);
+        zb[x] = static_cast<float>(iz);
+        continue;
       }
+      double cov = 1;
+      for (const Edge& e : edges) {
+        const double dist = e.nx * x + e.ny * y + e.c;
+        if (dist < k_full) cov *= opt.antialias_edges ? std::max(0.0, 0.5 + dist) : 0.0;
+      }
+      const int alpha = static_cast<int>(cov * 255 + 0.5);
+      if (alpha == 0) continue;
+      d[x] = static_cast<uchar>((val * alpha + d[x] * (255 - alpha) + 127) / 255);
+      if (alpha >= 128) zb[x] = static_cast<float>(iz);
     }
   }
 }

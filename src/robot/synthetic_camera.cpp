@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <limits>
+#include <thread>
 
 #include "core/error.h"
 
@@ -30,7 +31,8 @@ SyntheticStereoCamera::SyntheticStereoCamera(const StereoRig& rig, const Degrada
 }
 
 cv::Mat SyntheticStereoCamera::renderEye(const Intrinsics& cam, const World& world, const Pose& wMc,
-                                         const Twist& cVc, std::vector<Pose>* cMo) {
+                                         const Twist& cVc, std::mt19937_64& rng,
+                                         std::vector<Pose>* cMo) const {
   const Pose cMw = wMc.inverse();
   cMo->clear();
   // Depth for the blur: the nearest object centre in front of the camera and inside the view.
@@ -55,7 +57,7 @@ cv::Mat SyntheticStereoCamera::renderEye(const Intrinsics& cam, const World& wor
   Degradation d = deg_;
   d.motion_blur_px = std::hypot(bu, bv);
   d.motion_blur_angle_rad = std::atan2(bv, bu);
-  degrade(img, d, rng_);
+  degrade(img, d, rng);
   return img;
 }
 
@@ -68,8 +70,12 @@ SyntheticFrame SyntheticStereoCamera::render(const World& world, const Pose& wMl
   Twist rVr;
   rVr.w = lMr.R.transpose() * lVl.w;
   rVr.v = lMr.R.transpose() * (lVl.v + lVl.w.cross(lMr.t));
-  f.left = renderEye(rig_.left, world, wMl, lVl, &f.left_cMo);
-  f.right = renderEye(rig_.right, world, wMl * lMr, rVr, &f.right_cMo);
+  // One noise stream per eye, drawn in a fixed order: the eyes can render concurrently and the
+  // images stay bit-identical for a given seed.
+  std::mt19937_64 rng_left(rng_()), rng_right(rng_());
+  std::thread right([&] { f.right = renderEye(rig_.right, world, wMl * lMr, rVr, rng_right, &f.right_cMo); });
+  f.left = renderEye(rig_.left, world, wMl, lVl, rng_left, &f.left_cMo);
+  right.join();
   return f;
 }
 

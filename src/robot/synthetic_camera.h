@@ -39,7 +39,7 @@ class SyntheticStereoCamera {
 
  private:
   cv::Mat renderEye(const Intrinsics& cam, const World& world, const Pose& wMc, const Twist& cVc,
-                    std::vector<Pose>* cMo);
+                    std::mt19937_64& rng, std::vector<Pose>* cMo) const;
 
   StereoRig rig_;
   Degradation deg_;

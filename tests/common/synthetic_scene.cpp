@@ -1,5 +1,6 @@
 #include "common/synthetic_scene.h"
 
+#include <filesystem>
 #include <map>
 #include <mutex>
 #include <opencv2/imgcodecs.hpp>
@@ -40,7 +41,9 @@ cv::Mat loadMedia(const std::string& relpath) {
   const auto it = cache.find(relpath);
   if (it != cache.end()) return it->second;
   const std::string path = std::string(REFGRASP_SOURCE_DIR) + "/media/" + relpath;
-  cv::Mat img = cv::imread(path, cv::IMREAD_GRAYSCALE);
+  std::error_code ec;
+  cv::Mat img;
+  if (std::filesystem::is_regular_file(path, ec)) img = cv::imread(path, cv::IMREAD_GRAYSCALE);
   if (img.empty())
     throw std::runtime_error(path + ": missing or unreadable media texture (run build/app/make_media --out media)");
   cache[relpath] = img;

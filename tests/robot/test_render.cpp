@@ -315,3 +315,71 @@ TEST(Degrade, DeterministicGivenTheRng) {
 
 }  // namespace
 }  // namespace refgrasp::sim
+
+namespace refgrasp::testing {
+namespace {
+
+TEST(SyntheticScene, RandomVisiblePosesRespectTheirRanges) {
+  const Intrinsics cam = sceneCamera();
+  std::mt19937_64 rng(21);
+  const double max_tilt = 50 * M_PI / 180;
+  double max_seen_tilt = 0;
+  for (int i = 0; i < 300; ++i) {
+    const Pose cMo = randomVisiblePose(rng, cam, 0.2, 0.15, 0.4, 1.2, max_tilt);
+    const double dist = cMo.t.norm();
+    EXPECT_GE(dist, 0.4);
+    EXPECT_LE(dist, 1.2);
+    const double tilt = std::acos(cMo.R.col(2).dot(cMo.t.normalized()));
+    EXPECT_LE(tilt, max_tilt + 1e-9);
+    max_seen_tilt = std::max(max_seen_tilt, tilt);
+    EXPECT_NEAR((cMo.R.transpose() * cMo.R - Eigen::Matrix3d::Identity()).norm(), 0, 1e-12);
+    EXPECT_NEAR(cMo.R.determinant(), 1, 1e-12);
+    for (const auto& c : sim::projectPlaneCorners(cam, {cv::Mat(), 0.2, 0.15, cMo})) {
+      EXPECT_GE(c.x(), 10);
+      EXPECT_GE(c.y(), 10);
+      EXPECT_LE(c.x(), cam.width - 11);
+      EXPECT_LE(c.y(), cam.height - 11);
+    }
+  }
+  EXPECT_GT(max_seen_tilt, 0.9 * max_tilt);  // the range is used, not just near-frontal poses
+  EXPECT_THROW(randomVisiblePose(rng, cam, 3.0, 3.0, 0.3, 0.4, 0.1), std::runtime_error);
+}
+
+TEST(SyntheticScene, RenderTargetPutsTheTextureAtItsCorners) {
+  const Intrinsics cam = sceneCamera();
+  const cv::Mat tex = loadMedia("targets/cereal_box.png");
+  std::mt19937_64 rng(5);
+  SceneSpec spec;
+  spec.cMo = randomVisiblePose(rng, cam, 0.2, 0.2, 0.5, 0.8, 0.6);
+  spec.seed = 9;
+  const RenderedScene a = renderTarget(cam, tex, 0.2, 0.2, spec);
+  const RenderedScene b = renderTarget(cam, tex, 0.2, 0.2, spec);
+  EXPECT_EQ(cv::norm(a.image, b.image, cv::NORM_INF), 0);  // deterministic
+  ASSERT_EQ(a.all_corners.size(), 1u);
+  // Rectify the image with the homography from the corners: it is the texture.
+  std::vector<cv::Point2f> img_pts, tex_pts = {{-0.5f, -0.5f}, {399.5f, -0.5f}, {399.5f, 399.5f}, {-0.5f, 399.5f}};
+  for (const auto& c : a.corners) img_pts.emplace_back(static_cast<float>(c.x()), static_cast<float>(c.y()));
+  const cv::Mat H = cv::getPerspectiveTransform(tex_pts, img_pts);
+  cv::Mat back;
+  cv::warpPerspective(a.image, back, H, tex.size(), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP);
+  cv::Mat ncc;
+  cv::matchTemplate(back(cv::Rect(20, 20, 360, 360)), tex(cv::Rect(20, 20, 360, 360)), ncc, cv::TM_CCOEFF_NORMED);
+  EXPECT_GT(ncc.at<float>(0, 0), 0.85);
+  // Another seed: another background and noise, the same target.
+  spec.seed = 10;
+  EXPECT_GT(cv::norm(renderTarget(cam, tex, 0.2, 0.2, spec).image, a.image, cv::NORM_L1) / a.image.total(), 5);
+  EXPECT_THROW(loadMedia("targets/no_such_texture.png"), std::runtime_error);
+}
+
+TEST(SyntheticScene, ClutterBackgroundsAreDeterministicAndVaried) {
+  const cv::Mat a = clutterBackground(1), b = clutterBackground(1), c = clutterBackground(2);
+  EXPECT_EQ(a.size(), cv::Size(640, 480));
+  EXPECT_EQ(cv::norm(a, b, cv::NORM_INF), 0);
+  EXPECT_GT(cv::norm(a, c, cv::NORM_L1) / a.total(), 10);
+  cv::Scalar mean, sd;
+  cv::meanStdDev(a, mean, sd);
+  EXPECT_GT(sd[0], 25);  // textured, not flat
+}
+
+}  // namespace
+}  // namespace refgrasp::testing
