@@ -30,7 +30,9 @@ void command(Robot& robot, double t) {
   } else if (t < 8.05) {
     robot.gripper().close();
   } else {
+    // Commands are latched: stop each actuator explicitly.
     robot.base().setVelocity(0, 0);
+    robot.arm().setJointVelocity(Eigen::VectorXd::Zero(robot.arm().kinematics().dof()));
   }
 }
 
