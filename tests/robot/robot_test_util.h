@@ -2,6 +2,7 @@
 // Shared helpers for the robot HAL / simulated enon tests.
 #include <gtest/gtest.h>
 
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -14,6 +15,7 @@
 
 namespace refgrasp::testing_util {
 
+/// config/enon.yaml, or the file named by REFGRASP_TEST_ENON (to run the suite on another model).
 inline std::string enonPath() {
   if (const char* p = std::getenv("REFGRASP_TEST_ENON")) return p;
   return std::string(REFGRASP_SOURCE_DIR) + "/config/enon.yaml";
