@@ -228,6 +228,35 @@ TEST(Detector, TwoObjectsShareOneExtraction) {
   }
 }
 
+TEST(Detector, TwoInstancesOfOneObject) {
+  const cv::Mat a = loadMedia(kTexture);
+  const Intrinsics cam = sceneCamera();
+  DetectorOptions opt;
+  opt.match.max_instances = 3;
+  Detector det(opt);
+  det.addObject(textureObject("a", a, kWidth));
+  const Pose p0 = Pose::fromRotationVector({0.2, 0.3, 0.1}, {-0.12, 0.0, 0.75});
+  const Pose p1 = Pose::fromRotationVector({-0.1, -0.25, -0.3}, {0.13, 0.01, 0.8});
+  const RenderedScene s = renderTargets(
+      cam, {{a, kWidth, heightOf(a, kWidth), p0}, {a, kWidth, heightOf(a, kWidth), p1}},
+      SceneSpec{Pose(), 2.0, 0.0, 0.0, 808});
+  const DetectionResult r = det.detect(s.image, cam);
+  ASSERT_TRUE(r.find(0, 0) && r.find(0, 1));
+  EXPECT_EQ(r.find(0, 2), nullptr);  // only two copies in the frame
+  // Each true copy is matched by exactly one instance, with an accurate pose.
+  for (const Pose& truth : {p0, p1}) {
+    int matched = 0;
+    for (int k = 0; k < 2; ++k) {
+      const Pose& est = *r.find(0, k)->cMo;
+      if (translationError(est, truth) < 0.01 * truth.t.norm()) {
+        ++matched;
+        EXPECT_LT(rotationError(est, truth), 1.0 * kDeg);
+      }
+    }
+    EXPECT_EQ(matched, 1);
+  }
+}
+
 TEST(Detector, TwoDimensionalObjectGivesHomographyOnly) {
   const cv::Mat tex = loadMedia(kTexture);
   const Intrinsics cam = sceneCamera();
