@@ -11,7 +11,7 @@
 
 using namespace refgrasp;
 using namespace refgrasp::detector;
-using nlohmann::json;
+using json = nlohmann::ordered_json;  // keys in the documented order
 
 namespace {
 
