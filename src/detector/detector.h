@@ -35,7 +35,7 @@ namespace refgrasp::detector {
 struct DetectorOptions {
   SiftOptions sift;
   MatchOptions match;
-  /// Default chosen by tests/detector/test_detector.cpp (PoseAccuracy): the more accurate one.
+  /// Default: the more accurate method on Detector.PoseAccuracyBothMethods (test_detector.cpp).
   PoseMethod pose = PoseMethod::kRefined;
   PoseOptions pose_options;
   SanityOptions sanity;
