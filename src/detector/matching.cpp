@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <climits>
+#include <map>
 #include <cmath>
 #include <cstdint>
 #include <numeric>
@@ -693,9 +694,21 @@ ReferenceIndex buildReferenceIndex(Features f, const std::vector<Vec2>& polygon,
   std::vector<int> keep;
   for (int i = 0; i < f.size(); ++i)
     if (cv::pointPolygonTest(poly, f.keypoints[i].pt, false) >= 0) keep.push_back(i);
-  std::stable_sort(keep.begin(), keep.end(),
-                   [&](int a, int b) { return f.keypoints[a].response > f.keypoints[b].response; });
-  if (static_cast<int>(keep.size()) > opt.max_reference_features) keep.resize(opt.max_reference_features);
+  auto stronger = [&](int a, int b) { return f.keypoints[a].response > f.keypoints[b].response; };
+  std::stable_sort(keep.begin(), keep.end(), stronger);
+  if (static_cast<int>(keep.size()) > opt.max_reference_features) {
+    // Round robin over octaves (strongest first within each): coarse features are few and weak
+    // but the only ones left when the object is far away, so the cap must not drop them.
+    std::map<int, std::vector<int>> octaves;
+    for (int i : keep) octaves[static_cast<int>(std::floor(std::log2(std::max(1e-3f, f.keypoints[i].size))))].push_back(i);
+    std::vector<int> picked;
+    for (size_t rank = 0; static_cast<int>(picked.size()) < opt.max_reference_features; ++rank)
+      for (const auto& [oct, list] : octaves)
+        if (rank < list.size() && static_cast<int>(picked.size()) < opt.max_reference_features)
+          picked.push_back(list[rank]);
+    std::stable_sort(picked.begin(), picked.end(), stronger);
+    keep = picked;
+  }
   ri.features.image_size = f.image_size;
   ri.features.descriptors.create(static_cast<int>(keep.size()), kDim, CV_32F);
   for (size_t k = 0; k < keep.size(); ++k) {

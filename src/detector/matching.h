@@ -27,7 +27,7 @@ struct MatchOptions {
   double orientation_tolerance_rad = M_PI / 3;  ///< |o_s - predicted o| bound
   double scale_tolerance = 0.5;        ///< |s_s - predicted s| <= scale_tolerance * predicted s
   int max_hypotheses = 200;            ///< cap on hypotheses given a local search
-  int max_reference_features = 1000;   ///< strongest reference features kept (by response)
+  int max_reference_features = 1000;   ///< cap: strongest by response, round robin over octaves
   int min_inliers = 12;                ///< homography inliers needed to accept an instance
   double ransac_reproj_px = 3.0;
   int max_instances = 1;               ///< disjoint instances reported per object
@@ -42,8 +42,8 @@ struct MatchOptions {
   void check() const;
 };
 
-/// Built once per object: reference features (strongest max_reference_features inside the
-/// pattern polygon), pattern geometry and the descriptor index used for global matching.
+/// Built once per object: reference features (capped, inside the pattern polygon), pattern
+/// geometry and the descriptor index used for global matching.
 struct ReferenceIndex {
   Features features;                          ///< kept reference features (indices used below)
   std::vector<Eigen::Vector2d> polygon_px;    ///< pattern polygon, reference px
@@ -59,8 +59,10 @@ struct ReferenceIndex {
   std::vector<unsigned char> has_hi;             ///< row has a value >= 128
 };
 
-/// Keeps features inside the polygon (>= 3 vertices; empty = whole image), then the strongest
-/// opt.max_reference_features. Keypoint .pt may already be undistorted by the caller.
+/// Keeps features inside the polygon (>= 3 vertices; empty = whole image), then at most
+/// opt.max_reference_features: strongest first within each octave, taken round robin over the
+/// octaves (so coarse features, the only ones left on far objects, survive the cap); the result
+/// is ordered strongest first. Keypoint .pt may already be undistorted by the caller.
 ReferenceIndex buildReferenceIndex(Features ref_features,
                                    const std::vector<Eigen::Vector2d>& pattern_polygon_px,
                                    const MatchOptions& opt);

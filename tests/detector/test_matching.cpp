@@ -4,6 +4,8 @@
 
 #include <algorithm>
 #include <climits>
+#include <cmath>
+#include <map>
 #include <cstdio>
 #include <random>
 #include <set>
@@ -210,7 +212,7 @@ TEST(Matching, DeterministicForTheSameInput) {
   EXPECT_EQ(a.hypotheses_evaluated, b.hypotheses_evaluated);
 }
 
-TEST(Matching, ReferenceIndexKeepsStrongestInsidePolygon) {
+TEST(Matching, ReferenceIndexCapKeepsEveryOctave) {
   const cv::Mat tex = loadMedia("targets/cereal_box.png");
   const Features f = extractSift(tex, SiftOptions{});
   MatchOptions opt;
@@ -218,12 +220,26 @@ TEST(Matching, ReferenceIndexKeepsStrongestInsidePolygon) {
   const std::vector<Vec2> left_half = {Vec2(0, 0), Vec2(200, 0), Vec2(200, 399), Vec2(0, 399)};
   const ReferenceIndex ri = buildReferenceIndex(f, left_half, opt);
   ASSERT_EQ(ri.features.size(), 150);
+  EXPECT_EQ(ri.features.descriptors.rows, 150);
   for (const auto& k : ri.features.keypoints) EXPECT_LE(k.pt.x, 200.f);
   for (int i = 1; i < ri.features.size(); ++i)
     EXPECT_GE(ri.features.keypoints[i - 1].response, ri.features.keypoints[i].response);
+  // Round robin over octaves: every octave present inside the polygon keeps its strongest
+  // features, including the coarse ones a response-only cap would drop.
+  auto octave = [](const cv::KeyPoint& k) { return static_cast<int>(std::floor(std::log2(k.size))); };
+  std::map<int, std::vector<float>> inside, kept;
+  for (const auto& k : f.keypoints)
+    if (k.pt.x <= 200) inside[octave(k)].push_back(k.response);
+  for (const auto& k : ri.features.keypoints) kept[octave(k)].push_back(k.response);
+  ASSERT_EQ(kept.size(), inside.size());
+  for (auto& [oct, responses] : inside) {
+    std::sort(responses.rbegin(), responses.rend());
+    const auto& k = kept[oct];
+    ASSERT_FALSE(k.empty()) << "octave " << oct;
+    for (size_t i = 0; i < k.size(); ++i) EXPECT_EQ(k[i], responses[i]) << "octave " << oct;
+  }
   EXPECT_NEAR(ri.centre_px.x(), 100, 1e-9);
   EXPECT_NEAR(ri.centre_px.y(), 199.5, 1e-9);
-  EXPECT_EQ(ri.features.descriptors.rows, 150);
   EXPECT_THROW(buildReferenceIndex(f, {Vec2(0, 0), Vec2(1, 1)}, opt), std::invalid_argument);
   EXPECT_THROW(buildReferenceIndex(f, {Vec2(0, 0), Vec2(1, 1), Vec2(2, 2)}, opt), std::invalid_argument);
   EXPECT_THROW(buildReferenceIndex(f, {Vec2(0, 0), Vec2(std::nan(""), 1), Vec2(0, 9)}, opt), std::invalid_argument);
