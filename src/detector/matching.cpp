@@ -398,8 +398,25 @@ bool makeCandidate(const Context& cx, const std::vector<Correspondence>& matches
     a.push_back(pt(cx.ref.features.keypoints[m.ref]));
     b.push_back(pt(cx.scene.keypoints[m.scene]));
   }
-  const HomographyResult hr = estimateHomography(a, b, homographyOptions(cx.opt));
+  HomographyResult hr = estimateHomography(a, b, homographyOptions(cx.opt));
   if (!hr.ok || static_cast<int>(hr.inliers.size()) < cx.opt.min_inliers) return false;
+  {
+    // Tighten to 3 sigma of the fit (the RANSAC threshold admits coarse mismatches), refit.
+    const double tight = std::max(1.0, 3 * hr.rms_px);
+    std::vector<int> keep;
+    std::vector<Vec2> ka, kb;
+    for (int k : hr.inliers)
+      if ((applyHomography(hr.H, a[k]) - b[k]).norm() <= tight) {
+        keep.push_back(k);
+        ka.push_back(a[k]);
+        kb.push_back(b[k]);
+      }
+    if (static_cast<int>(keep.size()) < cx.opt.min_inliers) return false;
+    const Eigen::Matrix3d Ht = fitHomographyLeastSquares(ka, kb);
+    if (!Ht.allFinite()) return false;
+    hr.H = Ht;
+    hr.inliers = keep;
+  }
   if (!homographyPlausible(hr.H, cx.ref.hull_px, kMinAreaPx2)) return false;
   std::vector<cv::Point2f> in, hull;
   for (int k : hr.inliers) in.push_back(cx.ref.features.keypoints[matches[k].ref].pt);
