@@ -102,7 +102,8 @@ std::vector<NearestTwo> nearestTwo(const ReferenceIndex& ref, const Features& sc
 /// scene.keypoints. An empty result is the normal "not found".
 ///
 /// kRatio: global matches (scene -> reference nearest neighbour, ratio < global_ratio), robust
-/// homography, accepted with >= min_inliers; for more instances remove the inliers and repeat.
+/// homography, accepted by the same rules as step 3 below; for more instances remove the
+/// inliers and repeat.
 ///
 /// kPaper (Section III-B):
 ///  1. Global matches as above seed hypotheses T^k (eq. 1-2: scale s' = size_s/size_r, rotation
@@ -121,7 +122,8 @@ std::vector<NearestTwo> nearestTwo(const ReferenceIndex& ref, const Features& sc
 ///     reference neighbours (>= 4 local matches), pass 1 on its 200 nearest (>= 6), then two
 ///     passes over all features under the homography fitted to the previous pass (expected
 ///     error max(2 px, rms) + 0.03 x distance from the seed, then max(2 px, rms)).
-///  3. The last pass's matches give a robust homography; it is a candidate when it has
+///  3. The last pass's matches give a robust homography (inliers then tightened to 3 sigma of
+///     the fit, min 1 px, and re-fitted); it is a candidate when it has
 ///     >= min_inliers inliers, a plausible H (homographyPlausible on the pattern hull) and
 ///     inliers spanning >= min_inlier_spread of the reference. Its score is eq. 3.
 ///  4. Collapse: seeds whose scene feature is an inlier of a candidate, or that a candidate's H
