@@ -218,13 +218,11 @@ void drawPlane(cv::Mat& canvas, cv::Mat& inv_depth, const Eigen::Matrix3d& K, co
   if (poly.size() < 3) return;
 
   double minx = 1e30, miny = 1e30, maxx = -1e30, maxy = -1e30;
-  Eigen::Vector2d centroid = Eigen::Vector2d::Zero();
   for (const auto& q : poly) {
     minx = std::min(minx, q.x());
     maxx = std::max(maxx, q.x());
     miny = std::min(miny, q.y());
     maxy = std::max(maxy, q.y());
-    centroid += q / static_cast<double>(poly.size());
   }
   const cv::Rect roi = cv::Rect(cv::Point(static_cast<int>(std::floor(minx)) - 1,
                                           static_cast<int>(std::floor(miny)) - 1),
@@ -233,34 +231,32 @@ void drawPlane(cv::Mat& canvas, cv::Mat& inv_depth, const Eigen::Matrix3d& K, co
                        cv::Rect(0, 0, canvas.cols, canvas.rows);
   if (roi.empty()) return;
 
-  const Eigen::Matrix3d H = textureToImageK(K, p);
-  const Eigen::Matrix3d Hinv = H.inverse();
-  // Texture pixels per image pixel at the centroid: sqrt of the Jacobian determinant of H^-1.
-  int level = 0;
-  if (opt.mipmap) {
-    const Eigen::Vector3d x = Hinv * centroid.homogeneous();
-    const double w = x.z();
-    Eigen::Matrix2d J;
-    for (int r = 0; r < 2; ++r)
-      for (int c = 0; c < 2; ++c) J(r, c) = (Hinv(r, c) - x(r) / w * Hinv(2, c)) / w;
-    const double minification = std::sqrt(std::abs(J.determinant()));
-    const int max_level =
-        static_cast<int>(std::floor(std::log2(std::min(p.texture.cols, p.texture.rows) / 8.0)));
-    if (minification >= 2)
-      level = std::clamp(static_cast<int>(std::floor(std::log2(minification))), 0,
-                         std::max(0, max_level));
-  }
-  const cv::Mat tex = level == 0 ? p.texture : pyramidCache().get(p.texture, level)[level];
-  // pyrDown centres level-L pixel i on level-0 pixel 2^L i.
-  const double s = std::ldexp(1.0, level);
-  // Canvas pixel -> level-L texture pixel; sampled bilinearly, only where the plane is drawn.
-  const Eigen::Matrix3d M = (H * Eigen::DiagonalMatrix<double, 3>(s, s, 1)).inverse();
-  const int tw = tex.cols, th = tex.rows;
+  // Canvas pixel -> level-0 texture pixel, x_tex ~ M x_img.
+  const Eigen::Matrix3d M = textureToImageK(K, p).inverse();
+  // Texture pixels per image pixel: sqrt |det J| of the map, det J = det M / w^3. The pyramid
+  // level (cv::pyrDown, level-L pixel i centred on level-0 pixel 2^L i) is chosen per row.
+  const double detM = std::abs(M.determinant());
+  const int max_level =
+      opt.mipmap ? std::max(0, static_cast<int>(std::floor(std::log2(std::min(p.texture.cols, p.texture.rows) / 8.0))))
+                 : 0;
+  const auto levelAt = [&](double w) {
+    const double minification = std::sqrt(detM / std::abs(w * w * w));
+    if (!(minification >= 2)) return 0;
+    return std::min(max_level, static_cast<int>(std::floor(std::log2(minification))));
+  };
+  int needed = 0;  // deepest level any corner needs
+  for (const auto& q : poly) needed = std::max(needed, levelAt(M.row(2).dot(q.homogeneous())));
+  const std::vector<cv::Mat> pyramid =
+      needed == 0 ? std::vector<cv::Mat>{p.texture} : pyramidCache().get(p.texture, needed);
+  cv::Mat tex;
+  double scale = 1;  // level-0 -> level-L texture coordinates
+  int tw = 0, th = 0;
   // Homogeneous texture coordinates (a, b, w) are linear along a row; sample at a / w, b / w.
   const auto sample = [&](double a, double b, double w) {
     // Clamping replicates the border texels (the coverage mask cuts the plane's outline).
     const double inv = 1.0 / w;
-    const double u = std::clamp(a * inv, 0.0, tw - 1.0), v = std::clamp(b * inv, 0.0, th - 1.0);
+    const double u = std::clamp(a * inv * scale, 0.0, tw - 1.0);
+    const double v = std::clamp(b * inv * scale, 0.0, th - 1.0);
     const int iu = static_cast<int>(u), iv = static_cast<int>(v);
     const int iu1 = std::min(iu + 1, tw - 1), iv1 = std::min(iv + 1, th - 1);
     const float fu = static_cast<float>(u - iu), fv = static_cast<float>(v - iv);
@@ -294,6 +290,11 @@ void drawPlane(cv::Mat& canvas, cv::Mat& inv_depth, const Eigen::Matrix3d& K, co
     double a = M(0, 0) * X0 + M(0, 1) * Y + M(0, 2);
     double b = M(1, 0) * X0 + M(1, 1) * Y + M(1, 2);
     double w = M(2, 0) * X0 + M(2, 1) * Y + M(2, 2);
+    const int level = std::min(needed, levelAt(w + M(2, 0) * 0.5 * (x1 - x0)));
+    tex = pyramid[static_cast<size_t>(level)];
+    tw = tex.cols;
+    th = tex.rows;
+    scale = std::ldexp(1.0, -level);
     for (int x = x0; x <= x1; ++x, iz += g.x(), a += M(0, 0), b += M(1, 0), w += M(2, 0)) {
       if (iz < zb[x]) continue;  // behind what is already there
       const int val = sample(a, b, w);

@@ -24,7 +24,7 @@ struct TexturedPlane {
 
 struct RenderOptions {
   bool antialias_edges = true;  ///< alpha-blend a sub-pixel coverage mask at plane edges
-  bool mipmap = true;           ///< sample a cv::pyrDown level so minified textures do not alias
+  bool mipmap = true;           ///< sample a cv::pyrDown level (chosen per row) so minified textures do not alias
   double near_m = 0.01;         ///< near clipping plane (camera z, metres); parts closer are cut
   int background_gray = 128;    ///< fill when no background image is given
   void check() const;
