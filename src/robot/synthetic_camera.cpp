@@ -1,6 +1,7 @@
 #include "robot/synthetic_camera.h"
 
 #include <cmath>
+#include <exception>
 #include <limits>
 #include <thread>
 
@@ -73,9 +74,22 @@ SyntheticFrame SyntheticStereoCamera::render(const World& world, const Pose& wMl
   // One noise stream per eye, drawn in a fixed order: the eyes can render concurrently and the
   // images stay bit-identical for a given seed.
   std::mt19937_64 rng_left(rng_()), rng_right(rng_());
-  std::thread right([&] { f.right = renderEye(rig_.right, world, wMl * lMr, rVr, rng_right, &f.right_cMo); });
-  f.left = renderEye(rig_.left, world, wMl, lVl, rng_left, &f.left_cMo);
+  std::exception_ptr right_error;  // rethrown here: an exception must not escape the thread
+  std::thread right([&] {
+    try {
+      f.right = renderEye(rig_.right, world, wMl * lMr, rVr, rng_right, &f.right_cMo);
+    } catch (...) {
+      right_error = std::current_exception();
+    }
+  });
+  try {
+    f.left = renderEye(rig_.left, world, wMl, lVl, rng_left, &f.left_cMo);
+  } catch (...) {
+    right.join();
+    throw;
+  }
   right.join();
+  if (right_error) std::rethrow_exception(right_error);
   return f;
 }
 

@@ -155,5 +155,15 @@ TEST(SyntheticCamera, MeasuredNoiseMatchesTheScenario) {
   EXPECT_GT(cv::norm(f.left, f.right, cv::NORM_INF), 0);  // independent noise per eye
 }
 
+TEST(SyntheticCamera, BadWorldThrowsOnTheCallersThread) {
+  World bad = wallAt(2.0);
+  bad.objects[0].faces[0].texture = cv::Mat();  // empty texture: std::invalid_argument from either eye
+  SyntheticStereoCamera cam(idealRig(0.12), Degradation{}, 1);
+  EXPECT_THROW(cam.render(bad, Pose(), Twist(), 0), std::invalid_argument);
+  Degradation nonsense;
+  nonsense.noise_sigma = -1;
+  EXPECT_THROW(SyntheticStereoCamera(idealRig(0.12), nonsense, 1), std::invalid_argument);
+}
+
 }  // namespace
 }  // namespace refgrasp::sim
