@@ -210,16 +210,30 @@ __attribute__((target("avx2,avx512f,avx512vl,avx512bw,avx512vnni"))) void knnBlo
 }
 #endif
 
-std::vector<NearestTwo> globalKnn(const cv::Mat& S, const std::vector<int>& sn2, const ReferenceIndex& ref) {
+bool cpuHas(KnnKernel k) {
+#ifdef REFGRASP_HAVE_X86
+  static const bool avx2 = __builtin_cpu_supports("avx2");
+  static const bool vnni = __builtin_cpu_supports("avx512vnni") && __builtin_cpu_supports("avx512vl") &&
+                           __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx2");
+  if (k == KnnKernel::kAvx2) return avx2;
+  if (k == KnnKernel::kVnni) return vnni;
+#endif
+  return k == KnnKernel::kScalar || k == KnnKernel::kAuto;
+}
+
+std::vector<NearestTwo> globalKnn(const cv::Mat& S, const std::vector<int>& sn2, const ReferenceIndex& ref,
+                                  KnnKernel kernel = KnnKernel::kAuto) {
   const cv::Mat& R = ref.descriptors_s16;
   const std::vector<int>& rn2 = ref.descriptor_norm2;
   std::vector<NearestTwo> out(S.rows);
   if (R.rows == 0 || S.rows == 0) return out;
+  if (kernel == KnnKernel::kAuto) {
+    kernel = cpuHas(KnnKernel::kVnni) ? KnnKernel::kVnni
+             : cpuHas(KnnKernel::kAvx2) ? KnnKernel::kAvx2 : KnnKernel::kScalar;
+  }
+  if (!cpuHas(kernel)) kernel = KnnKernel::kScalar;
 #ifdef REFGRASP_HAVE_X86
-  static const bool avx2 = __builtin_cpu_supports("avx2");
-  static const bool vnni = __builtin_cpu_supports("avx512vnni") && __builtin_cpu_supports("avx512vl") &&
-                           __builtin_cpu_supports("avx512bw");
-  if (vnni) {
+  if (kernel == KnnKernel::kVnni) {
     cv::Mat S8;
     S.convertTo(S8, CV_8U);
     const int nblocks = (S.rows + 7) / 8;
@@ -228,8 +242,6 @@ std::vector<NearestTwo> globalKnn(const cv::Mat& S, const std::vector<int>& sn2,
     }, 8);
     return out;
   }
-#else
-  const bool avx2 = false;
 #endif
   const int chunk = 64;
   const int nchunks = (S.rows + chunk - 1) / chunk;
@@ -237,7 +249,7 @@ std::vector<NearestTwo> globalKnn(const cv::Mat& S, const std::vector<int>& sn2,
     for (int c = rg.start; c < rg.end; ++c) {
       const int s0 = c * chunk, s1 = std::min(S.rows, s0 + chunk);
 #ifdef REFGRASP_HAVE_X86
-      if (avx2) {
+      if (kernel == KnnKernel::kAvx2) {
         knnRowsAvx2(S, sn2, R, rn2, s0, s1, out.data());
         continue;
       }
@@ -245,7 +257,6 @@ std::vector<NearestTwo> globalKnn(const cv::Mat& S, const std::vector<int>& sn2,
       knnRowsScalar(S, sn2, R, rn2, s0, s1, out.data());
     }
   });
-  (void)avx2;
   return out;
 }
 
@@ -643,10 +654,12 @@ MatchResult matchRatio(const Context& cx, const std::vector<NearestTwo>& nn) {
 
 }  // namespace
 
-std::vector<NearestTwo> nearestTwo(const ReferenceIndex& ref, const Features& scene) {
+bool knnKernelAvailable(KnnKernel kernel) { return cpuHas(kernel); }
+
+std::vector<NearestTwo> nearestTwo(const ReferenceIndex& ref, const Features& scene, KnnKernel kernel) {
   std::vector<int> n2;
   const cv::Mat s16 = toS16(scene.descriptors, &n2);
-  return globalKnn(s16, n2, ref);
+  return globalKnn(s16, n2, ref, kernel);
 }
 
 void MatchOptions::check() const {

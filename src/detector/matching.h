@@ -95,8 +95,14 @@ struct NearestTwo {
   int d2 = 2147483647;      ///< squared distance to the second nearest
   int second = -1;          ///< index of the second nearest
 };
-/// For every scene feature (global matching, paper III-B); multithreaded, SIMD where available.
-std::vector<NearestTwo> nearestTwo(const ReferenceIndex& ref, const Features& scene);
+/// Implementations of the global 2-NN; all exact and identical in result. kAuto takes the
+/// fastest the CPU has (AVX-512 VNNI 8-bit dot products, else AVX2, else scalar).
+enum class KnnKernel { kAuto, kScalar, kAvx2, kVnni };
+bool knnKernelAvailable(KnnKernel kernel);
+/// For every scene feature (global matching, paper III-B); multithreaded. A kernel the CPU
+/// lacks falls back to kScalar.
+std::vector<NearestTwo> nearestTwo(const ReferenceIndex& ref, const Features& scene,
+                                   KnnKernel kernel = KnnKernel::kAuto);
 
 /// Finds up to opt.max_instances instances of the reference in the scene. grid must index
 /// scene.keypoints. An empty result is the normal "not found".

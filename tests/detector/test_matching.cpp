@@ -53,6 +53,17 @@ TEST(Matching, NearestTwoIsExact) {
   ASSERT_GT(scene.size(), 300);
   const auto nn = nearestTwo(ref, scene);
   ASSERT_EQ(static_cast<int>(nn.size()), scene.size());
+  // Every kernel this CPU has gives the identical answer.
+  for (KnnKernel k : {KnnKernel::kScalar, KnnKernel::kAvx2, KnnKernel::kVnni}) {
+    if (!knnKernelAvailable(k)) continue;
+    const auto other = nearestTwo(ref, scene, k);
+    for (int j = 0; j < scene.size(); ++j) {
+      ASSERT_EQ(other[j].best, nn[j].best) << "kernel " << static_cast<int>(k) << " feature " << j;
+      ASSERT_EQ(other[j].second, nn[j].second);
+      ASSERT_EQ(other[j].d1, nn[j].d1);
+      ASSERT_EQ(other[j].d2, nn[j].d2);
+    }
+  }
   for (int j = 0; j < scene.size(); ++j) {
     long d1 = LONG_MAX, d2 = LONG_MAX;
     for (int i = 0; i < ref.features.size(); ++i) {
