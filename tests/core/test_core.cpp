@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include "common/temp_dir.h"
+
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -14,8 +16,7 @@ namespace fs = std::filesystem;
 
 namespace {
 std::string writeTemp(const std::string& name, const std::string& text) {
-  const fs::path dir = fs::temp_directory_path() / "refgrasp_test_core";
-  fs::create_directories(dir);
+  const fs::path dir = refgrasp::testing::tempDir("refgrasp_test_core");
   const fs::path p = dir / name;
   std::ofstream(p) << text;
   return p.string();

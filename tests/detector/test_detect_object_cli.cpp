@@ -1,5 +1,7 @@
 // The detect_object app: JSON lines, exit codes, one-line errors naming the file.
 #include <gtest/gtest.h>
+
+#include "common/temp_dir.h"
 #include <sys/wait.h>
 
 #include <filesystem>
@@ -22,9 +24,7 @@ const std::string kObject = std::string(REFGRASP_SOURCE_DIR) + "/config/objects/
 const std::string kObject2 = std::string(REFGRASP_SOURCE_DIR) + "/config/objects/cereal_box.yaml";
 
 fs::path dir() {
-  const fs::path d = fs::temp_directory_path() / "refgrasp_test_cli";
-  fs::create_directories(d);
-  return d;
+  return refgrasp::testing::tempDir("refgrasp_test_cli");
 }
 
 std::string readFile(const fs::path& p) {

@@ -1,6 +1,8 @@
 // Object definition files: geometry of a valid definition, and one clear error per bad input.
 #include <gtest/gtest.h>
 
+#include "common/temp_dir.h"
+
 #include <filesystem>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
@@ -16,9 +18,7 @@ namespace fs = std::filesystem;
 namespace {
 
 fs::path testDir() {
-  const fs::path d = fs::temp_directory_path() / "refgrasp_test_object";
-  fs::create_directories(d);
-  return d;
+  return refgrasp::testing::tempDir("refgrasp_test_object");
 }
 
 std::string write(const std::string& name, const std::string& text) {

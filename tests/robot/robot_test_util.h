@@ -2,6 +2,8 @@
 // Shared helpers for the robot HAL / simulated enon tests.
 #include <gtest/gtest.h>
 
+#include "common/temp_dir.h"
+
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -26,8 +28,7 @@ inline robot::EnonModel enonModel() { return robot::loadEnonModel(enonPath()); }
 
 /// Writes `text` to a file in a per-test temporary directory and returns its path.
 inline std::string writeTempFile(const std::string& name, const std::string& text) {
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() / "refgrasp_test_robot";
-  std::filesystem::create_directories(dir);
+  const std::filesystem::path dir = refgrasp::testing::tempDir("refgrasp_test_robot");
   const std::filesystem::path p = dir / name;
   std::ofstream(p) << text;
   return p.string();
