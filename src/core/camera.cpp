@@ -167,9 +167,11 @@ Intrinsics loadVispXml(const std::string& path) {
   c.width = static_cast<int>(xmlNumber(path, cam, "image_width"));
   c.height = static_cast<int>(xmlNumber(path, cam, "image_height"));
   if (c.width <= 0 || c.height <= 0) throw ConfigError(path, "image_width", "must be positive");
-  // Prefer the model with distortion when present. ViSP's kud maps undistorted to distorted
-  // normalised coordinates with one radial term, the same as OpenCV's k1.
+  // ViSP writes one <model> per projection type: perspectiveProjWithoutDistortion and
+  // perspectiveProjWithDistortion. Prefer the latter: its kud maps undistorted to distorted
+  // normalised coordinates with one radial term, exactly OpenCV's k1.
   std::string chosen;
+  bool with_distortion = false;
   size_t pos = 0;
   while ((pos = cam.find("<model>", pos)) != std::string::npos) {
     const size_t end = cam.find("</model>", pos);
@@ -177,7 +179,18 @@ Intrinsics loadVispXml(const std::string& path) {
     const std::string model = cam.substr(pos, end - pos);
     bool found = false;
     const std::string type = xmlTag(model, "type", &found);
-    if (type == "with_distortion" || chosen.empty()) chosen = model;
+    if (!found) throw ConfigError(path, "model.type", "missing");
+    if (type == "perspectiveProjWithDistortion") {
+      chosen = model;
+      with_distortion = true;
+    } else if (type == "perspectiveProjWithoutDistortion") {
+      if (chosen.empty()) chosen = model;
+    } else {
+      throw ConfigError(path, "model.type",
+                        "unsupported projection model '" + type +
+                            "' (use perspectiveProjWithDistortion or "
+                            "perspectiveProjWithoutDistortion)");
+    }
     pos = end;
   }
   if (chosen.empty()) throw ConfigError(path, "model", "missing");
@@ -186,9 +199,7 @@ Intrinsics loadVispXml(const std::string& path) {
   c.cx = xmlNumber(path, chosen, "u0");
   c.cy = xmlNumber(path, chosen, "v0");
   if (c.fx <= 0 || c.fy <= 0) throw ConfigError(path, "px", "focal lengths must be positive");
-  bool found = false;
-  const std::string type = xmlTag(chosen, "type", &found);
-  if (type == "with_distortion") c.dist[0] = xmlNumber(path, chosen, "kud");
+  if (with_distortion) c.dist[0] = xmlNumber(path, chosen, "kud");
   return c;
 }
 

@@ -37,7 +37,8 @@ struct Intrinsics {
 };
 
 /// Reads a camera file: ROS camera_info YAML (.yaml/.yml, as written by camera_calibration)
-/// or ViSP's camera XML (.xml; the first <camera>, with_distortion model preferred).
+/// or ViSP's camera XML (.xml, as vpXmlParserCamera writes it; the first <camera>, its
+/// perspectiveProjWithDistortion model preferred).
 /// Throws ConfigError naming the file and field.
 Intrinsics loadCameraFile(const std::string& path);
 /// Writes ROS camera_info YAML.

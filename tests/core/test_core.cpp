@@ -62,8 +62,8 @@ distortion_coefficients: {rows: 1, cols: 5, data: [-0.1, 0, 0, 0, 0]}
 )");
   const std::string xml = writeTemp("cam.xml", R"(<?xml version="1.0"?>
 <root><camera><name>left</name><image_width>640</image_width><image_height>480</image_height>
-<model><type>without_distortion</type><px>549</px><py>550</py><u0>320</u0><v0>240</v0></model>
-<model><type>with_distortion</type><px>550</px><py>551</py><u0>320.5</u0><v0>240.25</v0>
+<model><type>perspectiveProjWithoutDistortion</type><px>549</px><py>550</py><u0>320</u0><v0>240</v0></model>
+<model><type>perspectiveProjWithDistortion</type><px>550</px><py>551</py><u0>320.5</u0><v0>240.25</v0>
 <kud>-0.1</kud><kdu>0.1</kdu></model></camera></root>
 )");
   const Intrinsics a = loadCameraFile(ros), b = loadCameraFile(xml);
@@ -104,8 +104,12 @@ TEST(CameraFile, BadInputsGiveOneLineErrorsNamingFileAndField) {
                         "image_width: 640\nimage_height: 480\ncamera_matrix: {data: [.nan,0,0,0,1,0,0,0,1]}\n"),
               "not finite");
   expectError(writeTemp("bad.xml", "<root></root>"), "no <camera>");
+  expectError(writeTemp("kb.xml", "<root><camera><image_width>640</image_width><image_height>480"
+                                  "</image_height><model><type>ProjWithKannalaBrandtDistortion"
+                                  "</type></model></camera></root>"),
+              "unsupported projection model");
   expectError(writeTemp("bad2.xml", "<root><camera><image_width>640</image_width><image_height>480"
-                                    "</image_height><model><type>without_distortion</type><px>abc"
+                                    "</image_height><model><type>perspectiveProjWithoutDistortion</type><px>abc"
                                     "</px></model></camera></root>"),
               "px");
 }
