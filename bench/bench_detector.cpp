@@ -88,6 +88,7 @@ int main(int argc, char** argv) {
     Features f;
     const double sift = timeMs([&] { f = extractSift(img, det.options().sift); });
     n_features += f.size();
+    f.image = img;  // as Detector::extract keeps it: the refined pose refines H densely (ECC)
     const GridIndex grid(f.keypoints, f.image_size);
     MatchResult mp, mr;
     t_paper.push_back(timeMs([&] { mp = matchObject(det.referenceIndex(id), f, grid, det.options().match); }));
@@ -112,7 +113,7 @@ int main(int argc, char** argv) {
   std::printf("| paper matcher                      | %9.2f |\n", median(t_paper));
   std::printf("| ratio matcher                      | %9.2f |\n", median(t_ratio));
   std::printf("| paper pose (eq. 7 + LM, 4 corners) | %9.3f |\n", median(t_ppose));
-  std::printf("| refined pose (IPPE + robust LM)    | %9.3f |\n", median(t_rpose));
+  std::printf("| refined pose (ECC H + IPPE + LM)   | %9.3f |\n", median(t_rpose));
   std::printf("| whole detection (detect, %-7s)  | %9.2f |\n", poseMethodName(det.options().pose),
               median(t_whole));
   const double bar = median(ratio_whole);

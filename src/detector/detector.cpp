@@ -36,6 +36,7 @@ void DetectorOptions::check() const {
   sift.check();
   match.check();
   pose_options.check();
+  dense.check();
   sanity.check();
 }
 
@@ -63,6 +64,19 @@ int Detector::addObject(const ObjectModel& object) {
     e.corners_und_px[i] =
         object.camera ? object.camera->undistortPixel(object.corners_px[i]) : object.corners_px[i];
   e.index = buildReferenceIndex(std::move(f), polygon, opt_.match);
+  // Dense refinement needs an undistorted reference whose pattern region is its bounding box.
+  if (object.target && (!object.camera || !object.camera->hasDistortion())) {
+    double area = 0, minx = 1e300, miny = 1e300, maxx = -1e300, maxy = -1e300;
+    for (size_t i = 0; i < polygon.size(); ++i) {
+      const Eigen::Vector2d& p = polygon[i];
+      const Eigen::Vector2d& n = polygon[(i + 1) % polygon.size()];
+      area += p.x() * n.y() - n.x() * p.y();
+      minx = std::min(minx, p.x()), maxx = std::max(maxx, p.x());
+      miny = std::min(miny, p.y()), maxy = std::max(maxy, p.y());
+    }
+    if (0.5 * std::abs(area) >= 0.98 * (maxx - minx) * (maxy - miny))
+      e.pyramid = buildReferencePyramid(object.reference);
+  }
   objects_.push_back(std::move(e));
   return static_cast<int>(objects_.size()) - 1;
 }
@@ -87,6 +101,7 @@ std::string Detector::validateImage(const cv::Mat& image, const Intrinsics& came
 Features Detector::extract(const cv::Mat& gray, const Intrinsics& camera) const {
   Features f = extractSift(gray, opt_.sift);
   undistortKeypoints(&f.keypoints, camera);
+  if (gray.type() == CV_8UC1) f.image = gray;
   return f;
 }
 
@@ -97,6 +112,30 @@ PoseResult Detector::estimatePose(int object, const MatchCandidate& match, const
   const PlanarTarget& target = *e.model.target;
   if (method == PoseMethod::kPaper)
     return estimatePosePaper(match.H, target, camera.K(), opt_.pose_options);
+  if (opt_.dense.enabled && !e.pyramid.empty() && !scene.image.empty() &&
+      !camera.hasDistortion()) {
+    const DenseRefineResult dr =
+        refineHomographyDense(e.pyramid, scene.image, match.H, e.corners_und_px, opt_.dense);
+    if (dr.ok) {
+      // Pose from a grid of pattern points mapped by the refined H.
+      const int n = opt_.dense.pose_grid;
+      std::vector<Eigen::Vector3d> X;
+      std::vector<Eigen::Vector2d> y;
+      const auto& c = e.corners_und_px;
+      for (int i = 0; i < n; ++i)
+        for (int j = 0; j < n; ++j) {
+          const double a = (i + 0.5) / n, b = (j + 0.5) / n;
+          const Eigen::Vector2d r =
+              (1 - b) * ((1 - a) * c[0] + a * c[1]) + b * ((1 - a) * c[3] + a * c[2]);
+          const auto Xo = target.backProject(r);
+          if (!Xo) continue;
+          X.push_back(*Xo);
+          y.push_back(applyHomography(dr.H, r));
+        }
+      const PoseResult p = estimatePoseRefined(X, y, target, camera.K(), opt_.pose_options);
+      if (p.ok) return p;
+    }
+  }
   std::vector<Eigen::Vector3d> X;
   std::vector<Eigen::Vector2d> y;
   std::vector<double> sigma;

@@ -23,6 +23,7 @@
 
 #include "core/camera.h"
 #include "core/pose.h"
+#include "detector/dense.h"
 #include "detector/features.h"
 #include "detector/matching.h"
 #include "detector/object.h"
@@ -38,6 +39,10 @@ struct DetectorOptions {
   /// Default: the more accurate method on Detector.PoseAccuracyBothMethods (test_detector.cpp).
   PoseMethod pose = PoseMethod::kRefined;
   PoseOptions pose_options;
+  /// Refined method only: photometric (ECC) refinement of the matched H, pose from a grid mapped
+  /// by it. Used when both cameras are distortion-free and the pattern region is a rectangle;
+  /// falls back to the feature correspondences when ECC fails or moves a corner too far.
+  DenseRefineOptions dense;
   SanityOptions sanity;
   void check() const;
 };
@@ -120,6 +125,7 @@ class Detector {
     ObjectModel model;
     ReferenceIndex index;
     std::array<Eigen::Vector2d, 4> corners_und_px;  ///< pattern corners, undistorted ref px
+    std::vector<cv::Mat> pyramid;  ///< reference pyramid for dense refinement (empty: not usable)
   };
   DetectionResult detectGray(const cv::Mat& gray, const Intrinsics& camera) const;
 

@@ -28,6 +28,9 @@ struct Features {
   std::vector<cv::KeyPoint> keypoints;  ///< pt in input-image pixels
   cv::Mat descriptors;                  ///< CV_32F, N x 128, row i describes keypoints[i]
   cv::Size image_size;                  ///< size of the image the features were extracted from
+  /// The 8-bit gray image itself (shared, not copied) when the caller kept it (Detector::extract
+  /// does, for the dense homography refinement); may be empty.
+  cv::Mat image;
   int size() const { return static_cast<int>(keypoints.size()); }
 };
 

@@ -1,0 +1,152 @@
+#include "detector/dense.h"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/video/tracking.hpp>
+
+#include "core/error.h"
+
+namespace refgrasp::detector {
+
+namespace {
+
+double quadArea(const std::array<Eigen::Vector2d, 4>& q) {
+  double a = 0;
+  for (int i = 0; i < 4; ++i) {
+    const Eigen::Vector2d& p = q[i];
+    const Eigen::Vector2d& n = q[(i + 1) % 4];
+    a += p.x() * n.y() - n.x() * p.y();
+  }
+  return 0.5 * std::abs(a);
+}
+
+}  // namespace
+
+void DenseRefineOptions::check() const {
+  const std::string w = "DenseRefineOptions";
+  refgrasp::check(max_iterations >= 1, w + ".max_iterations", "must be >= 1");
+  refgrasp::check(std::isfinite(epsilon) && epsilon > 0, w + ".epsilon", "must be finite and > 0");
+  refgrasp::check(max_template_px >= 64, w + ".max_template_px", "must be >= 64");
+  refgrasp::check(std::isfinite(max_corner_shift_px) && max_corner_shift_px > 0,
+                  w + ".max_corner_shift_px", "must be finite and > 0");
+  refgrasp::check(std::isfinite(min_correlation) && min_correlation >= -1 && min_correlation < 1,
+                  w + ".min_correlation", "must be in [-1, 1)");
+  refgrasp::check(gauss_filter_size >= 1 && gauss_filter_size % 2 == 1, w + ".gauss_filter_size",
+                  "must be odd and >= 1");
+  refgrasp::check(pose_grid >= 2, w + ".pose_grid", "must be >= 2");
+}
+
+std::vector<cv::Mat> buildReferencePyramid(const cv::Mat& gray, int min_side_px) {
+  std::vector<cv::Mat> pyr;
+  if (gray.empty()) return pyr;
+  pyr.push_back(gray);
+  while (true) {
+    const cv::Mat& last = pyr.back();
+    if ((last.cols + 1) / 2 < min_side_px || (last.rows + 1) / 2 < min_side_px) break;
+    cv::Mat next;
+    cv::pyrDown(last, next);
+    pyr.push_back(next);
+  }
+  return pyr;
+}
+
+DenseRefineResult refineHomographyDense(const std::vector<cv::Mat>& ref_pyramid,
+                                        const cv::Mat& scene, const Eigen::Matrix3d& H,
+                                        const std::array<Eigen::Vector2d, 4>& pattern_rect,
+                                        const DenseRefineOptions& opt) {
+  DenseRefineResult res;
+  res.H = H;
+  if (ref_pyramid.empty() || scene.empty() || scene.type() != CV_8UC1 || !H.allFinite()) return res;
+  std::array<Eigen::Vector2d, 4> proj;
+  for (int i = 0; i < 4; ++i) {
+    const Eigen::Vector3d q = H * pattern_rect[i].homogeneous();
+    if (!(q.z() > 0)) return res;
+    proj[i] = q.head<2>() / q.z();
+    if (!proj[i].allFinite()) return res;
+  }
+  const double a_ref = quadArea(pattern_rect), a_scene = quadArea(proj);
+  if (!(a_ref > 0) || !(a_scene > 16)) return res;
+
+  // Pattern bounding box in reference px.
+  double minx = 1e300, miny = 1e300, maxx = -1e300, maxy = -1e300;
+  for (const auto& c : pattern_rect) {
+    minx = std::min(minx, c.x()), maxx = std::max(maxx, c.x());
+    miny = std::min(miny, c.y()), maxy = std::max(maxy, c.y());
+  }
+  // Level: the finest one not finer than the scene (area ratio), coarser until the template fits.
+  const int levels = static_cast<int>(ref_pyramid.size());
+  int L = std::max(0, static_cast<int>(std::floor(0.5 * std::log2(a_ref / a_scene))));
+  L = std::min(L, levels - 1);
+  cv::Rect trect;
+  for (;; ++L) {
+    if (L >= levels) return res;
+    const double s = std::ldexp(1.0, L);
+    const cv::Mat& img = ref_pyramid[L];
+    // Inset: pyrDown reflects at the image border and the scene mixes the background in at the
+    // pattern's edge; both bias the fit, so the outermost template pixels are left out.
+    const int inset = 2 + opt.gauss_filter_size / 2;
+    const int x0 = std::max(0, static_cast<int>(std::ceil(minx / s))) + inset;
+    const int y0 = std::max(0, static_cast<int>(std::ceil(miny / s))) + inset;
+    const int x1 = std::min(img.cols - 1, static_cast<int>(std::floor(maxx / s))) - inset;
+    const int y1 = std::min(img.rows - 1, static_cast<int>(std::floor(maxy / s))) - inset;
+    trect = cv::Rect(x0, y0, x1 - x0 + 1, y1 - y0 + 1);
+    if (trect.width < 8 || trect.height < 8) return res;
+    if (trect.area() <= opt.max_template_px) break;
+  }
+  res.level = L;
+  const double s = std::ldexp(1.0, L);
+  Eigen::Matrix3d A;  // template px -> reference px
+  A << s, 0, s * trect.x, 0, s, s * trect.y, 0, 0, 1;
+
+  // Scene crop around the projected pattern.
+  const double margin = opt.max_corner_shift_px + 4;
+  double sx0 = 1e300, sy0 = 1e300, sx1 = -1e300, sy1 = -1e300;
+  for (const auto& p : proj) {
+    sx0 = std::min(sx0, p.x()), sx1 = std::max(sx1, p.x());
+    sy0 = std::min(sy0, p.y()), sy1 = std::max(sy1, p.y());
+  }
+  const int cx0 = std::max(0, static_cast<int>(std::floor(sx0 - margin)));
+  const int cy0 = std::max(0, static_cast<int>(std::floor(sy0 - margin)));
+  const int cx1 = std::min(scene.cols - 1, static_cast<int>(std::ceil(sx1 + margin)));
+  const int cy1 = std::min(scene.rows - 1, static_cast<int>(std::ceil(sy1 + margin)));
+  if (cx1 - cx0 < 8 || cy1 - cy0 < 8) return res;
+  const cv::Rect crect(cx0, cy0, cx1 - cx0 + 1, cy1 - cy0 + 1);
+  Eigen::Matrix3d B = Eigen::Matrix3d::Identity();  // scene px -> crop px
+  B(0, 2) = -cx0;
+  B(1, 2) = -cy0;
+
+  Eigen::Matrix3d W = B * H * A;
+  W /= W(2, 2);
+  cv::Mat warp(3, 3, CV_32F);
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) warp.at<float>(r, c) = static_cast<float>(W(r, c));
+  try {
+    res.correlation = cv::findTransformECC(
+        ref_pyramid[L](trect), scene(crect), warp, cv::MOTION_HOMOGRAPHY,
+        cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, opt.max_iterations,
+                         opt.epsilon),
+        cv::noArray(), opt.gauss_filter_size);
+  } catch (const cv::Exception&) {
+    return res;
+  }
+  Eigen::Matrix3d Wn;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) Wn(r, c) = warp.at<float>(r, c);
+  const Eigen::Matrix3d Hn = B.inverse() * Wn * A.inverse();
+  if (!Hn.allFinite() || !(res.correlation >= opt.min_correlation)) return res;
+  double shift = 0;
+  for (int i = 0; i < 4; ++i) {
+    const Eigen::Vector3d q = Hn * pattern_rect[i].homogeneous();
+    if (!(q.z() * (H * pattern_rect[i].homogeneous()).z() > 0)) return res;
+    shift = std::max(shift, (q.head<2>() / q.z() - proj[i]).norm());
+  }
+  res.corner_shift_px = shift;
+  if (!(shift <= opt.max_corner_shift_px)) return res;
+  res.ok = true;
+  res.H = Hn / Hn(2, 2);
+  return res;
+}
+
+}  // namespace refgrasp::detector

@@ -1,0 +1,51 @@
+#pragma once
+// Dense photometric refinement of a matched homography: ECC (cv::findTransformECC,
+// MOTION_HOMOGRAPHY, zero-mean normalised so gain/offset invariant) between the reference image at
+// the pyramid level whose resolution best matches the target's size in the scene and a crop of the
+// scene around the projected pattern, started from the feature homography. Every pixel of the
+// pattern contributes, so small targets (few keypoints) get a far better H than from SIFT alone.
+//
+// Pixels: H maps reference px -> scene px (centre of the top-left pixel at (0,0)). The caller must
+// only use it where reference and scene images are undistorted (no distortion in either camera).
+#include <Eigen/Core>
+#include <array>
+#include <opencv2/core.hpp>
+#include <vector>
+
+namespace refgrasp::detector {
+
+struct DenseRefineOptions {
+  bool enabled = true;               ///< refine H photometrically before the refined pose
+  int max_iterations = 20;           ///< ECC iterations
+  double epsilon = 1e-4;             ///< ECC stop: change of the warp parameters
+  int max_template_px = 16384;       ///< coarser pyramid level until the template fits (speed)
+  double max_corner_shift_px = 3.0;  ///< reject (keep the feature H) if a corner moves more
+  double min_correlation = 0.5;      ///< reject below this final ECC correlation coefficient
+  int gauss_filter_size = 1;         ///< ECC pre-smoothing kernel (odd, >= 1)
+  int pose_grid = 8;                 ///< pose from a pose_grid x pose_grid grid mapped by the H
+  /// Throws std::invalid_argument "DenseRefineOptions.<field>: <problem>".
+  void check() const;
+};
+
+/// Reference pyramid: level 0 = the image, level k = cv::pyrDown of level k-1 (a level-k pixel
+/// (u, v) sits at level-0 (2^k u, 2^k v)). Stops when a side would drop below min_side_px.
+std::vector<cv::Mat> buildReferencePyramid(const cv::Mat& gray, int min_side_px = 16);
+
+struct DenseRefineResult {
+  bool ok = false;
+  Eigen::Matrix3d H = Eigen::Matrix3d::Identity();  ///< refined (== input when !ok)
+  int level = -1;                ///< pyramid level used
+  double correlation = 0;        ///< final ECC coefficient
+  double corner_shift_px = 0;    ///< largest corner displacement refined vs input H
+};
+
+/// Refines H (reference px -> scene px) over the axis-aligned pattern rectangle `pattern_rect`
+/// (reference px, corners TL, TR, BR, BL; the template is its bounding box). Returns ok = false
+/// (and the input H) when ECC fails, diverges, moves a corner more than max_corner_shift_px or ends
+/// below min_correlation. scene: CV_8UC1.
+DenseRefineResult refineHomographyDense(const std::vector<cv::Mat>& ref_pyramid,
+                                        const cv::Mat& scene, const Eigen::Matrix3d& H,
+                                        const std::array<Eigen::Vector2d, 4>& pattern_rect,
+                                        const DenseRefineOptions& opt);
+
+}  // namespace refgrasp::detector
