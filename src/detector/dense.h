@@ -5,8 +5,9 @@
 // scene around the projected pattern, started from the feature homography. Every pixel of the
 // pattern contributes, so small targets (few keypoints) get a far better H than from SIFT alone.
 //
-// Pixels: H maps reference px -> scene px (centre of the top-left pixel at (0,0)). The caller must
-// only use it where reference and scene images are undistorted (no distortion in either camera).
+// Pixels: H maps reference px -> scene px (centre of the top-left pixel at (0,0)). Both images must
+// be ideal pinhole images: Detector::refineDense resamples a distorted scene around the pattern
+// onto the undistorted grid first.
 #include <Eigen/Core>
 #include <array>
 #include <opencv2/core.hpp>

@@ -105,6 +105,44 @@ Features Detector::extract(const cv::Mat& gray, const Intrinsics& camera) const 
   return f;
 }
 
+DenseRefineResult Detector::refineDense(const Entry& e, const Eigen::Matrix3d& H,
+                                        const cv::Mat& image, const Intrinsics& camera) const {
+  if (!camera.hasDistortion())
+    return refineHomographyDense(e.pyramid, image, H, e.corners_und_px, opt_.dense);
+  // H lives in undistorted pixels: resample only the pattern's neighbourhood of the image onto
+  // the ideal pinhole grid (never the whole frame), refine there, and move H back.
+  Eigen::Vector2d lo(1e9, 1e9), hi(-1e9, -1e9);
+  for (const auto& c : e.corners_und_px) {
+    const Eigen::Vector2d p = applyHomography(H, c);
+    if (!p.allFinite()) return {};
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const double margin = opt_.dense.max_corner_shift_px + 8;
+  const int x0 = static_cast<int>(std::floor(lo.x() - margin));
+  const int y0 = static_cast<int>(std::floor(lo.y() - margin));
+  const int w = static_cast<int>(std::ceil(hi.x() + margin)) - x0 + 1;
+  const int h = static_cast<int>(std::ceil(hi.y() + margin)) - y0 + 1;
+  if (w <= 0 || h <= 0 || w > 4 * camera.width || h > 4 * camera.height) return {};
+  cv::Mat mapx(h, w, CV_32FC1), mapy(h, w, CV_32FC1);
+  for (int v = 0; v < h; ++v)
+    for (int u = 0; u < w; ++u) {
+      const Eigen::Vector2d d = camera.distortNormalized(
+          Eigen::Vector2d((x0 + u - camera.cx) / camera.fx, (y0 + v - camera.cy) / camera.fy));
+      mapx.at<float>(v, u) = static_cast<float>(d.x());
+      mapy.at<float>(v, u) = static_cast<float>(d.y());
+    }
+  cv::Mat crop;
+  cv::remap(image, crop, mapx, mapy, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  Eigen::Matrix3d T = Eigen::Matrix3d::Identity();  // undistorted px -> crop px
+  T(0, 2) = -x0;
+  T(1, 2) = -y0;
+  DenseRefineResult r =
+      refineHomographyDense(e.pyramid, crop, T * H, e.corners_und_px, opt_.dense);
+  r.H = T.inverse() * r.H;
+  return r;
+}
+
 PoseResult Detector::estimatePose(int object, const MatchCandidate& match, const Features& scene,
                                   const Intrinsics& camera, PoseMethod method) const {
   const Entry& e = objects_.at(object);
@@ -112,10 +150,8 @@ PoseResult Detector::estimatePose(int object, const MatchCandidate& match, const
   const PlanarTarget& target = *e.model.target;
   if (method == PoseMethod::kPaper)
     return estimatePosePaper(match.H, target, camera.K(), opt_.pose_options);
-  if (opt_.dense.enabled && !e.pyramid.empty() && !scene.image.empty() &&
-      !camera.hasDistortion()) {
-    const DenseRefineResult dr =
-        refineHomographyDense(e.pyramid, scene.image, match.H, e.corners_und_px, opt_.dense);
+  if (opt_.dense.enabled && !e.pyramid.empty() && !scene.image.empty()) {
+    const DenseRefineResult dr = refineDense(e, match.H, scene.image, camera);
     if (dr.ok) {
       // Pose from a grid of pattern points mapped by the refined H.
       const int n = opt_.dense.pose_grid;

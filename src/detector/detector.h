@@ -40,8 +40,8 @@ struct DetectorOptions {
   PoseMethod pose = PoseMethod::kRefined;
   PoseOptions pose_options;
   /// Refined method only: photometric (ECC) refinement of the matched H, pose from a grid mapped
-  /// by it. Used when both cameras are distortion-free and the pattern region is a rectangle;
-  /// falls back to the feature correspondences when ECC fails or moves a corner too far.
+  /// by it. Used when the reference camera is distortion-free and the pattern region is a
+  /// rectangle (a distorted scene is resampled around the pattern only); falls back to the feature correspondences when ECC fails or moves a corner too far.
   DenseRefineOptions dense;
   SanityOptions sanity;
   void check() const;
@@ -128,6 +128,9 @@ class Detector {
     std::vector<cv::Mat> pyramid;  ///< reference pyramid for dense refinement (empty: not usable)
   };
   DetectionResult detectGray(const cv::Mat& gray, const Intrinsics& camera) const;
+  /// Dense refinement of H (undistorted reference px -> undistorted scene px) on `image`.
+  DenseRefineResult refineDense(const Entry& e, const Eigen::Matrix3d& H, const cv::Mat& image,
+                                const Intrinsics& camera) const;
 
   DetectorOptions opt_;
   std::vector<Entry> objects_;
