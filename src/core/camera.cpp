@@ -88,18 +88,6 @@ Eigen::Vector2d Intrinsics::undistortPixel(const Eigen::Vector2d& px) const {
   return {fx * xn.x() + cx, fy * xn.y() + cy};
 }
 
-Intrinsics Intrinsics::scaled(double s) const {
-  Intrinsics c = *this;
-  c.width = static_cast<int>(std::lround(width * s));
-  c.height = static_cast<int>(std::lround(height * s));
-  c.fx *= s;
-  c.fy *= s;
-  // Pixel centres: u' + 0.5 = s (u + 0.5).
-  c.cx = s * (cx + 0.5) - 0.5;
-  c.cy = s * (cy + 0.5) - 0.5;
-  return c;
-}
-
 namespace {
 
 Intrinsics loadRosYaml(const std::string& path) {

@@ -32,8 +32,6 @@ struct Intrinsics {
   Eigen::Vector2d undistortToNormalized(const Eigen::Vector2d& px) const;
   /// Distorted pixel -> the pixel an ideal pinhole with the same K would have seen.
   Eigen::Vector2d undistortPixel(const Eigen::Vector2d& px) const;
-  /// Same intrinsics scaled to an image `s` times as large (pixel-centre convention kept).
-  Intrinsics scaled(double s) const;
 };
 
 /// Reads a camera file: ROS camera_info YAML (.yaml/.yml, as written by camera_calibration)

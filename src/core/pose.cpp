@@ -10,10 +10,6 @@ Pose Pose::fromRotationVector(const Eigen::Vector3d& rvec, const Eigen::Vector3d
   return Pose(Eigen::AngleAxisd(angle, rvec / angle).toRotationMatrix(), t);
 }
 
-Pose Pose::fromMatrix(const Eigen::Matrix4d& M) {
-  return Pose(M.topLeftCorner<3, 3>(), M.topRightCorner<3, 1>());
-}
-
 Eigen::Vector3d Pose::rotationVector() const {
   const Eigen::AngleAxisd aa(R);
   return aa.axis() * aa.angle();

@@ -15,7 +15,6 @@ struct Pose {
   Pose(const Eigen::Matrix3d& R_, const Eigen::Vector3d& t_) : R(R_), t(t_) {}
   /// From an axis-angle vector (axis * angle, radians) and a translation (metres).
   static Pose fromRotationVector(const Eigen::Vector3d& rvec, const Eigen::Vector3d& t);
-  static Pose fromMatrix(const Eigen::Matrix4d& M);
 
   Eigen::Vector3d rotationVector() const;  ///< axis * angle, angle in [0, pi]
   Eigen::Matrix4d matrix() const;

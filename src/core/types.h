@@ -23,7 +23,6 @@ struct Twist {
     tw.w = x.tail<3>();
     return tw;
   }
-  bool isZero() const { return v.isZero(0) && w.isZero(0); }
 };
 
 }  // namespace refgrasp

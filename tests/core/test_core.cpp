@@ -44,14 +44,6 @@ TEST(Intrinsics, DistortionRoundTrip) {
     }
 }
 
-TEST(Intrinsics, ScaledKeepsPixelCentres) {
-  const Intrinsics c = Intrinsics::pinhole(640, 480, 550, 319.5, 239.5);
-  const Intrinsics c2 = c.scaled(2.0);
-  EXPECT_EQ(c2.width, 1280);
-  EXPECT_DOUBLE_EQ(c2.cx, 639.5);
-  EXPECT_DOUBLE_EQ(c2.fx, 1100);
-}
-
 TEST(CameraFile, RosYamlAndVispXmlAgree) {
   const std::string ros = writeTemp("cam.yaml", R"(image_width: 640
 image_height: 480
