@@ -130,6 +130,11 @@ int run(const DemoOptions& o) {
       case Phase::kLook: {
         if (!frame || frame->stamp < settle_until) break;  // wait for a frame taken after settling
         const auto r = det.detectStereo(frame->left, frame->right, robot->camera().rig());
+        if (!r.ok) {  // frames the detector cannot use: a camera fault, stop
+          std::fprintf(stderr, "sim_search_demo: frame %ld: %s\n", frame->index, r.error.c_str());
+          robot->stop();
+          return 3;
+        }
         ++looks;
         const detector::StereoDetection& s = r.objects.at(0);
         json line = {{"t_s", t}, {"frame", frame->index}, {"pan_rad", pan}, {"tilt_rad", tilt},
