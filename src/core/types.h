@@ -1,11 +1,19 @@
 #pragma once
 // Small value types shared by every module.
 #include <Eigen/Core>
+#include <cstdint>
 
 namespace refgrasp {
 
 /// Time stamps and periods, seconds. Simulation time starts at 0; hardware uses a steady clock.
 using Seconds = double;
+
+/// Identifies a camera frame across tools (detector results, tracker, recordings, DDS):
+/// capture time (exposure centre, seconds on the source's clock) and the source's frame counter.
+struct FrameStamp {
+  Seconds stamp = 0;
+  int64_t index = -1;  ///< -1 when unknown
+};
 
 /// A velocity screw: linear v (m/s) and angular w (rad/s), expressed in the frame its name says
 /// (e.g. eVe: end-effector velocity in the end-effector frame).

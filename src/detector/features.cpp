@@ -22,9 +22,51 @@ void SiftOptions::check() const {
                   "must be in (0.1, 10)");
 }
 
-Features extractSift(const cv::Mat& image, const SiftOptions& opt) {
+namespace {
+Features extractWhole(const cv::Mat& image, const SiftOptions& opt);
+}
+
+Features extractSift(const cv::Mat& image, const SiftOptions& opt, const ExtractRegion& region) {
   opt.check();
   refgrasp::check(!image.empty(), "extractSift", "empty image");
+  refgrasp::check(std::isfinite(region.min_size_px) && !std::isnan(region.max_size_px) &&
+                      region.min_size_px <= region.max_size_px,
+                  "ExtractRegion.min_size_px", "must be finite and <= max_size_px");
+  if (region.whole()) return extractWhole(image, opt);
+  const cv::Rect full(0, 0, image.cols, image.rows);
+  const cv::Rect roi = region.roi.area() > 0 ? (region.roi & full) : full;
+  Features f;
+  f.image_size = image.size();
+  if (roi.area() == 0) {
+    f.descriptors.create(0, 128, CV_32F);
+    return f;
+  }
+  // cv::SIFT has no ROI: extract on a crop with a margin that keeps the scale space of the
+  // keypoints wanted (their descriptor window spans about 1.5 sizes), then shift back.
+  const double keep = std::min(region.max_size_px, 0.5 * std::max(image.cols, image.rows));
+  const int margin = static_cast<int>(std::ceil(1.5 * keep)) + 8;
+  // The crop origin is a multiple of 32 px so that every octave samples the same grid as the
+  // whole image does (octave o takes every 2^o-th pixel of the doubled image).
+  const int x0 = std::max(0, (roi.x - margin) / 32 * 32), y0 = std::max(0, (roi.y - margin) / 32 * 32);
+  const cv::Rect crop = cv::Rect(x0, y0, roi.x + roi.width + margin - x0,
+                                 roi.y + roi.height + margin - y0) & full;
+  Features c = extractWhole(image(crop), opt);
+  f.descriptors.create(0, 128, CV_32F);
+  for (int i = 0; i < c.size(); ++i) {
+    cv::KeyPoint kp = c.keypoints[i];
+    kp.pt.x += static_cast<float>(crop.x);
+    kp.pt.y += static_cast<float>(crop.y);
+    const bool inside = kp.pt.x >= roi.x - 0.5f && kp.pt.x < roi.x + roi.width - 0.5f &&
+                        kp.pt.y >= roi.y - 0.5f && kp.pt.y < roi.y + roi.height - 0.5f;
+    if (!inside || kp.size < region.min_size_px || kp.size > region.max_size_px) continue;
+    f.keypoints.push_back(kp);
+    f.descriptors.push_back(c.descriptors.row(i));
+  }
+  return f;
+}
+
+namespace {
+Features extractWhole(const cv::Mat& image, const SiftOptions& opt) {
   cv::Mat gray;
   if (image.channels() == 3) {
     cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
@@ -88,6 +130,7 @@ Features extractSift(const cv::Mat& image, const SiftOptions& opt) {
   }
   return f;
 }
+}  // namespace
 
 GridIndex::GridIndex(const std::vector<cv::KeyPoint>& kps, cv::Size image_size, int cell_px)
     : cell_px_(std::max(1, cell_px)) {

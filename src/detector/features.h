@@ -34,9 +34,22 @@ struct Features {
   int size() const { return static_cast<int>(keypoints.size()); }
 };
 
+/// Where to look: a region of interest and a keypoint size range (re-detection around a predicted
+/// target). Keypoints are still reported in full-image pixels. An extractor may use the region to
+/// skip work (crop, skip octaves); the result is the full-image extraction restricted to keypoints
+/// whose centre lies in `roi` and whose size lies in [min_size_px, max_size_px], up to border
+/// effects within a few keypoint sizes of the ROI's edge.
+struct ExtractRegion {
+  cv::Rect roi;                 ///< input-image pixels; empty = the whole image
+  double min_size_px = 0;       ///< keypoint size (diameter, input px) range
+  double max_size_px = 1e30;
+  bool whole() const { return roi.area() == 0 && min_size_px <= 0 && max_size_px >= 1e30; }
+};
+
 /// Deterministic SIFT on an 8-bit grayscale image (CV_8UC1; colour is converted).
-/// Throws std::invalid_argument on an empty image or opt.check() failure.
-Features extractSift(const cv::Mat& gray, const SiftOptions& opt);
+/// Throws std::invalid_argument on an empty image, opt.check() failure or a non-finite / inverted
+/// size range. A ROI is clipped to the image; one outside it gives no features.
+Features extractSift(const cv::Mat& gray, const SiftOptions& opt, const ExtractRegion& region = {});
 
 /// Uniform grid of keypoint indices for radius queries. Keypoints outside the image are clamped
 /// into the border cells (still found by an exact distance test).

@@ -134,6 +134,48 @@ TEST(Features, BadInput) {
   EXPECT_EQ(extractSift(cv::Mat(4, 4, CV_8U, cv::Scalar(9)), SiftOptions{}).size(), 0);
 }
 
+// A region of interest gives the whole-image keypoints inside it (same positions, sizes,
+// descriptors), except within a few keypoint sizes of the ROI's edge.
+TEST(Features, RegionOfInterestMatchesTheWholeImage) {
+  const cv::Mat img = drawnTexture(5, 640, 480);
+  const Features all = extractSift(img, SiftOptions{});
+  ExtractRegion region;
+  region.roi = cv::Rect(200, 150, 240, 180);
+  region.max_size_px = 40;
+  const Features part = extractSift(img, SiftOptions{}, region);
+  ASSERT_GT(part.size(), 50);
+  EXPECT_EQ(part.image_size, img.size());
+  int expected = 0, found = 0, outside = 0;
+  for (const auto& k : part.keypoints)
+    if (!region.roi.contains(cv::Point(cvRound(k.pt.x), cvRound(k.pt.y))) || k.size > 40) ++outside;
+  for (int i = 0; i < all.size(); ++i) {
+    const cv::KeyPoint& ka = all.keypoints[i];
+    const double margin = 1.5 * ka.size;
+    if (ka.size > 40 || ka.pt.x < region.roi.x + margin || ka.pt.y < region.roi.y + margin ||
+        ka.pt.x > region.roi.br().x - margin || ka.pt.y > region.roi.br().y - margin)
+      continue;
+    ++expected;
+    for (int j = 0; j < part.size(); ++j) {
+      const cv::KeyPoint& kb = part.keypoints[j];
+      if (cv::norm(ka.pt - kb.pt) < 0.01 && std::abs(ka.size - kb.size) < 0.01 &&
+          cv::norm(all.descriptors.row(i), part.descriptors.row(j), cv::NORM_L2) < 1.0) {
+        ++found;
+        break;
+      }
+    }
+  }
+  EXPECT_EQ(outside, 0);
+  ASSERT_GT(expected, 30);
+  EXPECT_GE(found, expected * 98 / 100) << found << " of " << expected;
+
+  region.roi = cv::Rect(700, 500, 10, 10);  // outside the image
+  EXPECT_EQ(extractSift(img, SiftOptions{}, region).size(), 0);
+  region = ExtractRegion{};
+  region.min_size_px = 5;
+  region.max_size_px = 4;
+  EXPECT_THROW(extractSift(img, SiftOptions{}, region), std::invalid_argument);
+}
+
 TEST(GridIndex, RadiusSearchEqualsBruteForce) {
   std::mt19937_64 rng(7);
   std::uniform_real_distribution<float> x(-20, 660), y(-20, 500);  // some outside the image
