@@ -8,8 +8,8 @@
 
 #include "core/error.h"
 #include "robot/hal.h"
-#include "robot/scenario.h"
-#include "robot/sim_enon.h"
+#include "robot/sim/scenario.h"
+#include "robot/sim/sim_enon.h"
 
 using namespace refgrasp;
 using namespace refgrasp::robot;
@@ -40,7 +40,7 @@ int run(const std::string& enon_path, const std::string& scenario_path, const st
         double duration_s, int png_every) {
   const EnonModel model = loadEnonModel(enon_path);
   const sim::Scenario scenario = sim::loadScenario(scenario_path);
-  std::unique_ptr<Robot> robot = makeRobot(model, "sim", &scenario);
+  std::unique_ptr<Robot> robot = sim::makeSimRobot(model, scenario);
   std::filesystem::create_directories(out);
   std::ofstream csv(out + "/state.csv");
   csv << RobotState::csvHeader(model.arm.dof()) << '\n';

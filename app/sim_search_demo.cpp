@@ -14,8 +14,9 @@
 #include "core/error.h"
 #include "detector/detector.h"
 #include "robot/hal.h"
-#include "robot/scenario.h"
-#include "robot/sim_enon.h"
+#include "servo/search.h"
+#include "robot/sim/scenario.h"
+#include "robot/sim/sim_enon.h"
 
 using namespace refgrasp;
 using json = nlohmann::json;
@@ -74,9 +75,9 @@ int run(const DemoOptions& o) {
   const sim::SimObject& object = scenario.world.objects[target];
 
   detector::Detector det;
-  det.addObject(detector::loadObjectDefinition(object.definition));
+  const int id = det.addObject(detector::loadObjectDefinition(object.definition));
 
-  std::unique_ptr<robot::Robot> robot = robot::makeRobot(model, "sim", &scenario);
+  std::unique_ptr<robot::Robot> robot = sim::makeSimRobot(model, scenario);
   auto* sim = dynamic_cast<sim::SimEnon*>(&robot->hardware());
   std::filesystem::create_directories(o.out);
   std::ofstream log(o.out + "/looks.jsonl");
@@ -84,135 +85,76 @@ int run(const DemoOptions& o) {
     std::fprintf(stderr, "sim_search_demo: could not activate the simulated enon\n");
     return 2;
   }
+  servo::SearchOptions so;
+  so.tilt_rad = o.tilt_rad;
+  so.pan_step_rad = o.pan_step_rad;
+  so.settle_s = o.settle_s;
+  so.turn_rad = o.turn_rad;
+  servo::SearchController search(*robot, det, id, so);
 
-  // Head positions to try from the current base heading: straight, then alternately left/right.
-  std::vector<double> pans{0.0};
-  for (double p = o.pan_step_rad; p <= model.head.pan.max_rad + 1e-9; p += o.pan_step_rad) {
-    pans.push_back(p);
-    if (-p >= model.head.pan.min_rad) pans.push_back(-p);
-  }
-
-  enum class Phase { kPointHead, kSettle, kLook, kTurnBase, kDone } phase = Phase::kPointHead;
-  size_t pan_index = 0;
-  double settle_until = 0, turn_start_theta = 0;
-  int looks = 0, exit_code = 1;
   const double dt = model.control_period_s;
   const double max_time = std::min(o.max_time_s, scenario.max_duration_s);
   std::printf("sim_search_demo: looking for '%s' in %s (up to %.0f s simulated)\n",
               object.name.c_str(), o.scenario.c_str(), max_time);
-
-  for (double t = 0; t <= max_time && phase != Phase::kDone; t += dt) {
-    if (robot->read(t, dt) != robot::ReturnType::kOk) {
-      std::fprintf(stderr, "sim_search_demo: robot read failed at t=%.2f s\n", t);
-      robot->stop();
+  int exit_code = 1;
+  for (double t = 0; t <= max_time && search.phase() != servo::SearchPhase::kFound; t += dt) {
+    const servo::SearchStep step = search.step(t, dt);
+    if (step.status != robot::ReturnType::kOk) {  // the controller stopped the robot
+      std::fprintf(stderr, "sim_search_demo: %s\n", step.error.c_str());
       return 3;
     }
-    std::optional<robot::StereoFrame> frame;
-    if (robot->camera().grab(t, &frame) != robot::ReturnType::kOk) {
-      std::fprintf(stderr, "sim_search_demo: camera failed at t=%.2f s\n", t);
-      robot->stop();
-      return 3;
-    }
-    const double pan = robot->state().pan_rad, tilt = robot->state().tilt_rad;
-    robot->base().setVelocity(0, 0);
-    robot->head().setPosition(pans[pan_index], o.tilt_rad);
-
-    switch (phase) {
-      case Phase::kPointHead:
-        if (std::abs(pan - pans[pan_index]) < 0.01 && std::abs(tilt - o.tilt_rad) < 0.01) {
-          settle_until = t + o.settle_s;
-          phase = Phase::kSettle;
-        }
-        break;
-      case Phase::kSettle:
-        if (t >= settle_until) phase = Phase::kLook;
-        break;
-      case Phase::kLook: {
-        if (!frame || frame->stamp < settle_until) break;  // wait for a frame taken after settling
-        const auto r = det.detectStereo(frame->left, frame->right, robot->camera().rig());
-        if (!r.ok) {  // frames the detector cannot use: a camera fault, stop
-          std::fprintf(stderr, "sim_search_demo: frame %ld: %s\n", frame->index, r.error.c_str());
-          robot->stop();
-          return 3;
-        }
-        ++looks;
-        const detector::StereoDetection& s = r.objects.at(0);
-        json line = {{"t_s", t}, {"frame", frame->index}, {"pan_rad", pan}, {"tilt_rad", tilt},
-                     {"left_found", s.left.found}, {"right_found", s.right.found},
-                     {"extract_ms", r.left.time_ms.extract + r.right.time_ms.extract},
-                     {"total_ms", r.left.time_ms.total + r.right.time_ms.total}};
-        const bool found = s.fused.lMo.has_value();
-        std::printf("  t=%5.2f s  pan=%+.2f rad  look %d: %s\n", t, pan, looks,
-                    found ? "FOUND" : "not found");
-        if (found) {
-          const Pose& lMo = *s.fused.lMo;
-          // Ground truth of the same frame, from the simulator.
-          const sim::SyntheticFrame* truth = sim ? sim->lastFrame() : nullptr;
-          line["lMo"] = poseJson(lMo);
-          line["eyes"] = std::string(s.left.found ? "L" : "") + (s.right.found ? "R" : "");
-          std::string summary = "found";
-          if (truth && truth->stamp == frame->stamp) {
-            const Pose& lMo_true = truth->left_cMo.at(target);
-            const double terr = translationError(lMo, lMo_true);
-            const double rerr = rotationError(lMo, lMo_true) * 180 / M_PI;
-            line["lMo_true"] = poseJson(lMo_true);
-            line["translation_error_m"] = terr;
-            line["rotation_error_deg"] = rerr;
-            char buf[160];
-            std::snprintf(buf, sizeof(buf), "dist %.3f m, error %.1f mm / %.2f deg",
-                          lMo_true.t.norm(), terr * 1000, rerr);
-            summary = buf;
-          }
-          const Pose wMo = sim ? sim->wMc() * lMo : Pose();
-          line["wMo"] = poseJson(wMo);
-          std::printf("  fused pose (left camera): t = [%.3f %.3f %.3f] m; %s\n", lMo.t.x(),
-                      lMo.t.y(), lMo.t.z(), summary.c_str());
-          const Intrinsics& lc = robot->camera().rig().left;
-          const Intrinsics& rc = robot->camera().rig().right;
-          cv::imwrite(o.out + "/found_left.png", annotate(frame->left, s.left, lc, "left: " + summary));
-          cv::imwrite(o.out + "/found_right.png", annotate(frame->right, s.right, rc, "right"));
-          phase = Phase::kDone;
-          exit_code = 0;
-        } else {
-          char name[64];
-          std::snprintf(name, sizeof(name), "/look_%02d_left.png", looks);
-          cv::imwrite(o.out + name, frame->left);
-          if (++pan_index >= pans.size()) {
-            pan_index = 0;
-            turn_start_theta = robot->state().wMb_odom.rotationVector().z();
-            phase = Phase::kTurnBase;
-          } else {
-            phase = Phase::kPointHead;
-          }
-        }
-        log << line.dump() << '\n';
-        break;
+    if (!step.look) continue;
+    const servo::SearchLook& look = *step.look;
+    const detector::StereoDetection& s = look.detection;
+    const robot::StereoFrame& frame = look.frame;
+    json line = {{"t_s", t}, {"frame", frame.index}, {"pan_rad", robot->state().pan_rad},
+                 {"tilt_rad", robot->state().tilt_rad}, {"left_found", s.left.found},
+                 {"right_found", s.right.found}, {"extract_ms", look.extract_ms},
+                 {"total_ms", look.total_ms}};
+    std::printf("  t=%5.2f s  pan=%+.2f rad  look %d: %s\n", t, robot->state().pan_rad,
+                look.number, look.found() ? "FOUND" : "not found");
+    if (look.found()) {
+      const Pose& lMo = *s.fused.lMo;
+      // Ground truth of the same frame, from the simulator.
+      const sim::SyntheticFrame* truth = sim ? sim->lastFrame() : nullptr;
+      line["lMo"] = poseJson(lMo);
+      line["eyes"] = std::string(s.left.found ? "L" : "") + (s.right.found ? "R" : "");
+      std::string summary = "found";
+      if (truth && truth->stamp == frame.stamp) {
+        const Pose& lMo_true = truth->left_cMo.at(target);
+        const double terr = translationError(lMo, lMo_true);
+        const double rerr = rotationError(lMo, lMo_true) * 180 / M_PI;
+        line["lMo_true"] = poseJson(lMo_true);
+        line["translation_error_m"] = terr;
+        line["rotation_error_deg"] = rerr;
+        char buf[160];
+        std::snprintf(buf, sizeof(buf), "dist %.3f m, error %.1f mm / %.2f deg",
+                      lMo_true.t.norm(), terr * 1000, rerr);
+        summary = buf;
       }
-      case Phase::kTurnBase: {
-        const double theta = robot->state().wMb_odom.rotationVector().z();
-        const double turned = std::remainder(theta - turn_start_theta, 2 * M_PI);
-        if (std::abs(turned) >= o.turn_rad) {
-          phase = Phase::kPointHead;
-        } else {
-          robot->base().setVelocity(0, 0.5);
-        }
-        break;
-      }
-      case Phase::kDone:
-        break;
+      const Pose wMo = sim ? sim->wMc() * lMo : Pose();
+      line["wMo"] = poseJson(wMo);
+      std::printf("  fused pose (left camera): t = [%.3f %.3f %.3f] m; %s\n", lMo.t.x(),
+                  lMo.t.y(), lMo.t.z(), summary.c_str());
+      const Intrinsics& lc = robot->camera().rig().left;
+      const Intrinsics& rc = robot->camera().rig().right;
+      cv::imwrite(o.out + "/found_left.png", annotate(frame.left, s.left, lc, "left: " + summary));
+      cv::imwrite(o.out + "/found_right.png", annotate(frame.right, s.right, rc, "right"));
+      exit_code = 0;
+    } else {
+      char name[64];
+      std::snprintf(name, sizeof(name), "/look_%02d_left.png", look.number);
+      cv::imwrite(o.out + name, frame.left);
     }
-    if (robot->write(t, dt) != robot::ReturnType::kOk) {
-      std::fprintf(stderr, "sim_search_demo: robot write failed at t=%.2f s\n", t);
-      robot->stop();
-      return 3;
-    }
+    log << line.dump() << '\n';
   }
   robot->stop();
   robot->deactivate();
   if (exit_code != 0)
-    std::printf("sim_search_demo: target not found after %d looks (%.0f s simulated)\n", looks,
-                max_time);
-  std::printf("sim_search_demo: %d looks; pictures and looks.jsonl in %s\n", looks, o.out.c_str());
+    std::printf("sim_search_demo: target not found after %d looks (%.0f s simulated)\n",
+                search.looks(), max_time);
+  std::printf("sim_search_demo: %d looks; pictures and looks.jsonl in %s\n", search.looks(),
+              o.out.c_str());
   return exit_code;
 }
 

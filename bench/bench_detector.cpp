@@ -7,7 +7,7 @@
 #include <random>
 #include <string>
 
-#include "common/synthetic_scene.h"
+#include "robot/sim/synthetic_scene.h"
 #include "detector/detector.h"
 
 using namespace refgrasp;

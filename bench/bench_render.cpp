@@ -6,8 +6,8 @@
 #include <cstdio>
 #include <vector>
 
-#include "robot/scenario.h"
-#include "robot/synthetic_camera.h"
+#include "robot/sim/scenario.h"
+#include "robot/sim/synthetic_camera.h"
 
 using namespace refgrasp;
 

@@ -35,4 +35,9 @@ Eigen::Matrix3d axisAngle(const Eigen::Vector3d& axis, double angle) {
   return Eigen::AngleAxisd(angle, axis.normalized()).toRotationMatrix();
 }
 
+Pose interpolate(const Pose& a, const Pose& b, double s) {
+  const Eigen::Quaterniond qa(a.R), qb(b.R);
+  return Pose(qa.slerp(s, qb).toRotationMatrix(), (1 - s) * a.t + s * b.t);
+}
+
 }  // namespace refgrasp

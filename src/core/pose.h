@@ -28,6 +28,8 @@ struct Pose {
 double rotationError(const Pose& a, const Pose& b);
 /// Euclidean distance (metres) between a.t and b.t.
 double translationError(const Pose& a, const Pose& b);
+/// Rigid interpolation from a (s = 0) to b (s = 1): slerp of the rotation, linear translation.
+Pose interpolate(const Pose& a, const Pose& b, double s);
 /// Rotation about `axis` (unit or not) by `angle` radians.
 Eigen::Matrix3d axisAngle(const Eigen::Vector3d& axis, double angle);
 

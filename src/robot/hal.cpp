@@ -125,14 +125,25 @@ ReturnType StereoCamera::grab(Seconds time, std::optional<StereoFrame>* frame) {
   frame->reset();
   if (r_->lifecycle_ != Lifecycle::kActive) return ReturnType::kError;
   const ReturnType res = r_->cam_->grab(time, frame);
-  if (res != ReturnType::kOk) r_->stop();
-  return res;
+  if (res != ReturnType::kOk) {
+    frame->reset();
+    r_->stop();
+    return res;
+  }
+  if (*frame) {
+    CaptureState& c = (*frame)->capture;
+    const CaptureState known = r_->captureAt((*frame)->stamp);
+    if (!c.head) c.head = known.head;
+    if (!c.wMb_odom) c.wMb_odom = known.wMb_odom;
+    if (!c.bMc) c.bMc = headCameraPose(r_->model_.head, c.head->pan_rad, c.head->tilt_rad);
+  }
+  return ReturnType::kOk;
 }
 
 // ---- Robot -------------------------------------------------------------------------------------
 
 Robot::Robot(const EnonModel& model, std::unique_ptr<RobotHardware> hardware,
-             std::unique_ptr<StereoCameraHardware> camera)
+             std::unique_ptr<StereoSource> camera)
     : model_(model),
       kin_(model.arm),
       hw_(std::move(hardware)),
@@ -162,6 +173,7 @@ ReturnType Robot::activate() {
   if (r != ReturnType::kOk) return r;
   lifecycle_ = Lifecycle::kActive;
   watchdog_.reset();
+  history_.clear();
   pending_ = RobotCommand::zero(kin_.dof());
   arm_twist_.reset();
   fresh_ = false;
@@ -195,12 +207,38 @@ ReturnType Robot::read(Seconds time, Seconds period) {
     stop();
     return r;
   }
+  if (!history_.empty() && history_.back().t >= time) history_.clear();  // time went back: restart
+  history_.push_back({time, state_.wMb_odom, state_.pan_rad, state_.tilt_rad});
+  while (history_.size() > 2 && history_.front().t < time - 2.0) history_.pop_front();
   // No write() for a while: the layer still zeroes every actuator.
   if (!fresh_ && watchdog_.expired(time) && !state_.watchdog_tripped) {
     state_.watchdog_tripped = true;
     stop();
   }
   return ReturnType::kOk;
+}
+
+CaptureState Robot::captureAt(Seconds t) const {
+  CaptureState c;
+  Sample x{t, state_.wMb_odom, state_.pan_rad, state_.tilt_rad};
+  if (!history_.empty()) {
+    if (t <= history_.front().t) {
+      x = history_.front();
+    } else if (t >= history_.back().t) {
+      x = history_.back();
+    } else {
+      const auto b = std::lower_bound(history_.begin(), history_.end(), t,
+                                      [](const Sample& s, Seconds v) { return s.t < v; });
+      const auto a = b - 1;
+      const double s = (t - a->t) / (b->t - a->t);
+      x.wMb_odom = interpolate(a->wMb_odom, b->wMb_odom, s);
+      x.pan = (1 - s) * a->pan + s * b->pan;
+      x.tilt = (1 - s) * a->tilt + s * b->tilt;
+    }
+  }
+  c.head = HeadJoints{x.pan, x.tilt};
+  c.wMb_odom = x.wMb_odom;
+  return c;
 }
 
 ReturnType Robot::write(Seconds time, Seconds period) {

@@ -4,33 +4,29 @@
 // exception, inside the loop) and on ViSP's vpRobot::setVelocity(frame, twist).
 //
 // Layers:
-//   RobotHardware, StereoCameraHardware  device backends (simulated enon; later the real enon
-//                                        controller and the Bumblebee2 over libdc1394)
+//   RobotHardware, StereoSource (robot/camera.h)  device backends, one folder each under
+//                                        src/robot/<backend>/ (sim/ now; later the real enon
+//                                        controller, dds/, and the Bumblebee2 over dc1394/)
 //   Robot                                the aggregate a controller uses: Base, Head, Arm, Gripper,
 //                                        StereoCamera views, limits, arm DLS, the watchdog, stop().
+// Backends are built by name through robot/backend.h; nothing here knows any backend type.
 // Every error path commands zero velocity. Frames and units: robot/enon_model.h.
 #include <Eigen/Core>
+#include <deque>
 #include <memory>
-#include <opencv2/core.hpp>
 #include <optional>
 #include <string>
 
 #include "core/camera.h"
 #include "core/pose.h"
 #include "core/types.h"
+#include "robot/camera.h"
 #include "robot/enon_model.h"
 #include "robot/kinematics.h"
+#include "robot/status.h"
 #include "robot/watchdog.h"
 
-namespace refgrasp::sim {
-struct Scenario;
-}
-
 namespace refgrasp::robot {
-
-enum class ReturnType { kOk, kError, kDeactivate };
-enum class Lifecycle { kUnconfigured, kInactive, kActive };
-const char* toString(ReturnType r);
 
 enum class HeadMode { kVelocity, kPosition };
 enum class GripperCommand { kNone, kOpen, kClose };
@@ -65,12 +61,6 @@ struct RobotState {
   std::string csvRow() const;
 };
 
-struct StereoFrame {
-  cv::Mat left, right;  ///< CV_8UC1, same capture time
-  Seconds stamp = 0;    ///< capture time (exposure centre)
-  long index = 0;       ///< frame counter of the device
-};
-
 /// Device backend of base, head, arm and gripper.
 class RobotHardware {
  public:
@@ -85,16 +75,6 @@ class RobotHardware {
   /// (the watchdog period): a device never keeps moving on a stale command.
   virtual ReturnType write(Seconds time, Seconds period, const RobotCommand& cmd,
                            Seconds valid_for_s) = 0;
-};
-
-/// Device backend of the stereo camera.
-class StereoCameraHardware {
- public:
-  virtual ~StereoCameraHardware() = default;
-  virtual const StereoRig& rig() const = 0;
-  /// The newest frame captured by `time` and not returned before; std::nullopt in `frame` when
-  /// there is none (not due yet, or dropped). kError only when the device fails.
-  virtual ReturnType grab(Seconds time, std::optional<StereoFrame>* frame) = 0;
 };
 
 /// Frame of an arm velocity command (vpRobot::setVelocity idiom). Reference point: e's origin.
@@ -193,7 +173,7 @@ class StereoCamera {
 class Robot {
  public:
   Robot(const EnonModel& model, std::unique_ptr<RobotHardware> hardware,
-        std::unique_ptr<StereoCameraHardware> camera);
+        std::unique_ptr<StereoSource> camera);
   ~Robot();
   Robot(const Robot&) = delete;
   Robot& operator=(const Robot&) = delete;
@@ -225,16 +205,24 @@ class Robot {
   friend class Gripper;
   friend class StereoCamera;
   void commanded() { fresh_ = true; }
+  /// Robot state at `t` from history_ (linear interpolation, held at the ends).
+  CaptureState captureAt(Seconds t) const;
 
   EnonModel model_;
   ArmKinematics kin_;
   std::unique_ptr<RobotHardware> hw_;
-  std::unique_ptr<StereoCameraHardware> cam_;
+  std::unique_ptr<StereoSource> cam_;
   Lifecycle lifecycle_ = Lifecycle::kUnconfigured;
   Watchdog watchdog_;
   RobotCommand pending_, sent_;
   std::optional<std::pair<ArmFrame, Twist>> arm_twist_;  ///< Cartesian arm command, if any
   RobotState state_;
+  struct Sample {
+    Seconds t;
+    Pose wMb_odom;
+    double pan, tilt;
+  };
+  std::deque<Sample> history_;  ///< states read in the last two seconds, oldest first
   Seconds last_time_ = 0, last_period_ = 0;
   bool fresh_ = false;
   Base base_{this};
@@ -243,10 +231,5 @@ class Robot {
   Gripper gripper_{this};
   StereoCamera camera_{this};
 };
-
-/// Builds a Robot on a backend chosen by configuration. backends: "sim" (needs `scenario`).
-/// Throws ConfigError naming the model file on an unknown backend or a missing scenario.
-std::unique_ptr<Robot> makeRobot(const EnonModel& model, const std::string& backend,
-                                 const sim::Scenario* scenario = nullptr);
 
 }  // namespace refgrasp::robot

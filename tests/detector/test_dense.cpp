@@ -7,7 +7,7 @@
 #include <cstdio>
 #include <opencv2/imgproc.hpp>
 
-#include "common/synthetic_scene.h"
+#include "robot/sim/synthetic_scene.h"
 #include "detector/dense.h"
 #include "detector/homography.h"
 

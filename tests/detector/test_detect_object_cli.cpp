@@ -10,7 +10,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
-#include "common/synthetic_scene.h"
+#include "robot/sim/synthetic_scene.h"
 #include "core/camera.h"
 
 using namespace refgrasp;

@@ -8,7 +8,7 @@
 #include <opencv2/imgproc.hpp>
 #include <random>
 
-#include "common/synthetic_scene.h"
+#include "robot/sim/synthetic_scene.h"
 #include "detector/detector.h"
 
 using namespace refgrasp;

@@ -4,7 +4,7 @@
 
 #include <cstdio>
 
-#include "common/synthetic_scene.h"
+#include "robot/sim/synthetic_scene.h"
 #include "detector/detector.h"
 
 using namespace refgrasp;

@@ -8,7 +8,7 @@
 #include <random>
 #include <string>
 
-#include "common/synthetic_scene.h"
+#include "robot/sim/synthetic_scene.h"
 #include "detector/homography.h"
 #include "detector/matching.h"
 

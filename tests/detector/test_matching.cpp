@@ -10,7 +10,7 @@
 #include <random>
 #include <set>
 
-#include "common/synthetic_scene.h"
+#include "robot/sim/synthetic_scene.h"
 #include "detector/homography.h"
 #include "detector/matching.h"
 

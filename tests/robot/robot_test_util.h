@@ -1,5 +1,5 @@
 #pragma once
-// Shared helpers for the robot HAL / simulated enon tests.
+// Shared helpers for the robot HAL tests (HAL only; the simulator's are in sim/sim_test_util.h).
 #include <gtest/gtest.h>
 
 #include "common/temp_dir.h"
@@ -7,13 +7,11 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <functional>
 #include <memory>
 #include <string>
 
 #include "robot/enon_model.h"
 #include "robot/hal.h"
-#include "robot/sim_enon.h"
 
 namespace refgrasp::testing_util {
 
@@ -33,32 +31,5 @@ inline std::string writeTempFile(const std::string& name, const std::string& tex
   std::ofstream(p) << text;
   return p.string();
 }
-
-/// A simulated enon behind the HAL, configured and active.
-struct SimRig {
-  refgrasp::robot::EnonModel model;
-  sim::SimEnon* sim = nullptr;
-  std::unique_ptr<refgrasp::robot::Robot> robot;
-  double dt;
-
-  explicit SimRig(const sim::Scenario& sc, refgrasp::robot::EnonModel m = enonModel())
-      : model(std::move(m)), dt(model.control_period_s) {
-    auto hw = std::make_unique<sim::SimEnon>(model, sc);
-    sim = hw.get();
-    auto cam = hw->makeCamera();
-    robot = std::make_unique<refgrasp::robot::Robot>(model, std::move(hw), std::move(cam));
-    EXPECT_EQ(robot->configure(), refgrasp::robot::ReturnType::kOk);
-    EXPECT_EQ(robot->activate(), refgrasp::robot::ReturnType::kOk);
-  }
-  /// Cycles k = 0..n-1 at t = t0 + k dt: read, command(t), write.
-  void run(int n, const std::function<void(double)>& command, double t0 = 0) {
-    for (int k = 0; k < n; ++k) {
-      const double t = t0 + k * dt;
-      ASSERT_EQ(robot->read(t, dt), refgrasp::robot::ReturnType::kOk);
-      if (command) command(t);
-      ASSERT_EQ(robot->write(t, dt), refgrasp::robot::ReturnType::kOk);
-    }
-  }
-};
 
 }  // namespace refgrasp::testing_util

@@ -25,8 +25,11 @@ struct FakeHardware : RobotHardware {
   ReturnType configure() override { return ReturnType::kOk; }
   ReturnType activate() override { return ReturnType::kOk; }
   ReturnType deactivate() override { return ReturnType::kOk; }
+  double pan_rate = 0;  ///< scripted head motion: pan = pan_rate * time
   ReturnType read(Seconds time, Seconds, RobotState* s) override {
     s->stamp = time;
+    s->pan_rad = pan_rate * time;
+    s->wMb_odom = Pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0.5 * time, 0, 0));
     s->arm_q_rad = q;
     s->arm_qdot_radps = Eigen::VectorXd::Zero(q.size());
     return read_status;
@@ -37,12 +40,14 @@ struct FakeHardware : RobotHardware {
   }
 };
 
-struct FakeCamera : StereoCameraHardware {
+struct FakeCamera : StereoSource {
   StereoRig rig_;
   ReturnType status = ReturnType::kOk;
+  std::optional<StereoFrame> next;  ///< delivered by the next grab (capture state left empty)
   const StereoRig& rig() const override { return rig_; }
   ReturnType grab(Seconds, std::optional<StereoFrame>* f) override {
-    f->reset();
+    *f = next;
+    next.reset();
     return status;
   }
 };
@@ -171,6 +176,39 @@ TEST_F(HalFixture, DeviceErrorsStopTheRobot) {
   EXPECT_EQ(robot->camera().grab(0.06, &frame), ReturnType::kError);
   EXPECT_FALSE(frame.has_value());
   EXPECT_TRUE(isZeroMotion(hw->writes.back().second));
+}
+
+// A device that does not report the capture state: the layer interpolates head joints, bMc and
+// odometry at the frame's capture time from the states it read, not the state at grab time.
+TEST_F(HalFixture, FramesCarryTheCameraPoseAtCaptureTime) {
+  activate();
+  hw->pan_rate = 0.4;
+  for (int k = 0; k <= 10; ++k) ASSERT_EQ(robot->read(0.02 * k, 0.02), ReturnType::kOk);
+  StereoFrame f;
+  f.stamp = 0.07;  // between the reads at 0.06 and 0.08, grabbed at 0.20
+  f.index = 3;
+  cam->next = f;
+  std::optional<StereoFrame> got;
+  ASSERT_EQ(robot->camera().grab(0.2, &got), ReturnType::kOk);
+  ASSERT_TRUE(got && got->capture.head && got->capture.bMc && got->capture.wMb_odom);
+  EXPECT_NEAR(got->capture.head->pan_rad, 0.4 * 0.07, 1e-12);
+  EXPECT_NEAR(robot->state().pan_rad, 0.4 * 0.2, 1e-12);
+  EXPECT_NEAR(got->capture.wMb_odom->t.x(), 0.5 * 0.07, 1e-12);
+  const Pose bMc = headCameraPose(model.head, 0.4 * 0.07, 0.0);
+  EXPECT_LT(translationError(*got->capture.bMc, bMc), 1e-12);
+  EXPECT_LT(rotationError(*got->capture.bMc, bMc), 1e-12);
+  EXPECT_GT(rotationError(*got->capture.bMc, robot->head().bMc()), 0.05);  // head moved since
+  EXPECT_EQ(got->frameStamp().index, 3);
+
+  // A device that reports the head joints at capture is believed; before the first read and
+  // after the last one the state is held.
+  f.stamp = 5.0;
+  f.capture.head = HeadJoints{-0.3, 0.1};
+  cam->next = f;
+  ASSERT_EQ(robot->camera().grab(0.2, &got), ReturnType::kOk);
+  EXPECT_EQ(got->capture.head->pan_rad, -0.3);
+  EXPECT_LT(rotationError(*got->capture.bMc, headCameraPose(model.head, -0.3, 0.1)), 1e-12);
+  EXPECT_NEAR(got->capture.wMb_odom->t.x(), 0.5 * 0.2, 1e-12);
 }
 
 TEST_F(HalFixture, DeactivateStops) {

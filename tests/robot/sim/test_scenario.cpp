@@ -7,10 +7,10 @@
 #include <regex>
 #include <unistd.h>
 
-#include "common/synthetic_scene.h"
+#include "robot/sim/synthetic_scene.h"
 #include "core/error.h"
-#include "robot/render.h"
-#include "robot/scenario.h"
+#include "robot/sim/render.h"
+#include "robot/sim/scenario.h"
 
 namespace refgrasp::sim {
 namespace {

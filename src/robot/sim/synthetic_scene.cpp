@@ -1,5 +1,6 @@
-#include "common/synthetic_scene.h"
+#include "robot/sim/synthetic_scene.h"
 
+#include <cstdlib>
 #include <filesystem>
 #include <map>
 #include <mutex>
@@ -7,7 +8,7 @@
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
-#include "robot/degrade.h"
+#include "robot/sim/degrade.h"
 
 namespace refgrasp::testing {
 
@@ -32,6 +33,11 @@ const char* const kClutterWords[] = {"EXIT", "Room 12", "push", "coffee", "A4", 
 
 }  // namespace
 
+std::string mediaDir() {
+  if (const char* d = std::getenv("REFGRASP_MEDIA_DIR"); d && *d) return d;
+  return REFGRASP_MEDIA_DIR;
+}
+
 Intrinsics sceneCamera() { return Intrinsics::pinhole(640, 480, 550, 319.5, 239.5); }
 
 cv::Mat loadMedia(const std::string& relpath) {
@@ -40,7 +46,7 @@ cv::Mat loadMedia(const std::string& relpath) {
   std::lock_guard<std::mutex> lock(mu);
   const auto it = cache.find(relpath);
   if (it != cache.end()) return it->second;
-  const std::string path = std::string(REFGRASP_SOURCE_DIR) + "/media/" + relpath;
+  const std::string path = mediaDir() + "/" + relpath;
   std::error_code ec;
   cv::Mat img;
   if (std::filesystem::is_regular_file(path, ec)) img = cv::imread(path, cv::IMREAD_GRAYSCALE);

@@ -1,4 +1,4 @@
-#include "robot/scenario.h"
+#include "robot/sim/scenario.h"
 
 #include <cmath>
 #include <filesystem>

@@ -3,8 +3,8 @@
 
 #include <opencv2/imgproc.hpp>
 
-#include "common/synthetic_scene.h"
-#include "robot/synthetic_camera.h"
+#include "robot/sim/synthetic_scene.h"
+#include "robot/sim/synthetic_camera.h"
 
 namespace refgrasp::sim {
 namespace {

@@ -1,4 +1,4 @@
-#include "robot/synthetic_camera.h"
+#include "robot/sim/synthetic_camera.h"
 
 #include <cmath>
 #include <exception>

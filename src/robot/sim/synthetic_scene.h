@@ -12,12 +12,15 @@
 
 #include "core/camera.h"
 #include "core/pose.h"
-#include "robot/render.h"
+#include "robot/sim/render.h"
 
 namespace refgrasp::testing {
 
 /// 640x480, f = 550 px, c = (319.5, 239.5), no distortion.
 Intrinsics sceneCamera();
+
+/// The project's media/ folder: $REFGRASP_MEDIA_DIR when set, else the source tree's media/.
+std::string mediaDir();
 
 /// A media texture, e.g. loadMedia("targets/cereal_box.png"), as CV_8UC1 (cached after the first
 /// load). Throws std::runtime_error naming the path when it is missing, so the test fails clearly.

@@ -4,9 +4,9 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "common/synthetic_scene.h"
-#include "robot/degrade.h"
-#include "robot/render.h"
+#include "robot/sim/synthetic_scene.h"
+#include "robot/sim/degrade.h"
+#include "robot/sim/render.h"
 
 namespace refgrasp::sim {
 namespace {

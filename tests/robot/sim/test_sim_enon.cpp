@@ -7,9 +7,11 @@
 #include <random>
 
 #include "core/error.h"
+#include "robot/backend.h"
+#include "robot/backends.h"
 #include "robot/hal.h"
-#include "robot/sim_enon.h"
-#include "robot_test_util.h"
+#include "robot/sim/sim_enon.h"
+#include "sim_test_util.h"
 
 using namespace refgrasp;
 using namespace refgrasp::robot;
@@ -342,17 +344,27 @@ TEST(SimEnon, OdometryNoiseGrowsAsConfigured) {
 }
 
 TEST(SimEnon, FactoryBuildsTheSimBackendAndRejectsUnknownOnes) {
+  registerBuiltinBackends();
   const EnonModel m = testing_util::enonModel();
-  const Scenario sc = emptyScenario();
-  auto robot = makeRobot(m, "sim", &sc);
+  const std::string scenario = std::string(REFGRASP_SOURCE_DIR) + "/config/scenarios/table_single.yaml";
+  auto robot = makeRobot(m, {"sim", {{"scenario", scenario}}, "test"});
   ASSERT_NE(robot, nullptr);
   EXPECT_EQ(robot->configure(), ReturnType::kOk);
-  EXPECT_THROW(makeRobot(m, "sim", nullptr), ConfigError);
+  EXPECT_NE(dynamic_cast<sim::SimEnon*>(&robot->hardware()), nullptr);
+  EXPECT_THROW(makeRobot(m, {"sim", {}, "test"}), ConfigError);
   try {
-    makeRobot(m, "ros2", &sc);
+    makeRobot(m, {"ros2", {}, ""});
     ADD_FAILURE();
   } catch (const ConfigError& e) {
     EXPECT_NE(std::string(e.what()).find("backend: unknown backend 'ros2'"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find(m.path), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("available: sim"), std::string::npos) << e.what();
+  }
+  try {
+    makeRobot(m, {"sim", {{"scenario", "/nonexistent/scenario.yaml"}}, "test"});
+    ADD_FAILURE();
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/scenario.yaml"), std::string::npos);
   }
 }
 

@@ -1,4 +1,4 @@
-#include "robot/sim_enon.h"
+#include "robot/sim/sim_enon.h"
 
 #include <algorithm>
 #include <cmath>
@@ -24,16 +24,11 @@ uint64_t splitmix64(uint64_t x) {
   return x ^ (x >> 31);
 }
 
-Pose interpolate(const Pose& a, const Pose& b, double s) {
-  const Eigen::Quaterniond qa(a.R), qb(b.R);
-  return Pose(qa.slerp(s, qb).toRotationMatrix(), (1 - s) * a.t + s * b.t);
-}
-
 }  // namespace
 
 // ---- camera ------------------------------------------------------------------------------------
 
-class SimStereoCamera : public robot::StereoCameraHardware {
+class SimStereoCamera : public robot::StereoSource {
  public:
   explicit SimStereoCamera(SimEnon* sim)
       : sim_(sim),
@@ -69,6 +64,7 @@ class SimStereoCamera : public robot::StereoCameraHardware {
     out.right = sim_->last_frame_->right;
     out.stamp = t;
     out.index = k;
+    out.capture.head = robot::HeadJoints{now.pan, now.tilt};
     *frame = std::move(out);
     return ReturnType::kOk;
   }
@@ -133,7 +129,7 @@ ReturnType SimEnon::deactivate() {
   return ReturnType::kOk;
 }
 
-std::unique_ptr<robot::StereoCameraHardware> SimEnon::makeCamera() {
+std::unique_ptr<robot::StereoSource> SimEnon::makeCamera() {
   return std::make_unique<SimStereoCamera>(this);
 }
 
@@ -309,6 +305,8 @@ void SimEnon::pushSnapshot() {
   Snapshot s;
   s.t = time_;
   s.wMl = wMc();
+  s.pan = pan_;
+  s.tilt = tilt_;
   for (const auto& o : world_.objects) s.wMo.push_back(o.wMo);
   if (!history_.empty() && history_.back().t >= s.t - kTimeEps) history_.pop_back();
   history_.push_back(std::move(s));
@@ -328,23 +326,26 @@ SimEnon::Snapshot SimEnon::snapshotAt(Seconds t) const {
   Snapshot out;
   out.t = t;
   out.wMl = interpolate(a.wMl, b.wMl, s);
+  out.pan = (1 - s) * a.pan + s * b.pan;
+  out.tilt = (1 - s) * a.tilt + s * b.tilt;
   for (size_t i = 0; i < a.wMo.size(); ++i) out.wMo.push_back(interpolate(a.wMo[i], b.wMo[i], s));
   return out;
 }
 
-}  // namespace refgrasp::sim
-
-namespace refgrasp::robot {
-
-std::unique_ptr<Robot> makeRobot(const EnonModel& model, const std::string& backend,
-                                 const sim::Scenario* scenario) {
-  if (backend == "sim") {
-    if (!scenario) throw ConfigError(model.path, "backend", "'sim' needs a scenario");
-    auto hw = std::make_unique<sim::SimEnon>(model, *scenario);
-    auto cam = hw->makeCamera();
-    return std::make_unique<Robot>(model, std::move(hw), std::move(cam));
-  }
-  throw ConfigError(model.path, "backend", "unknown backend '" + backend + "' (available: sim)");
+std::unique_ptr<robot::Robot> makeSimRobot(const robot::EnonModel& model, const Scenario& scenario) {
+  auto hw = std::make_unique<SimEnon>(model, scenario);
+  auto cam = hw->makeCamera();
+  return std::make_unique<robot::Robot>(model, std::move(hw), std::move(cam));
 }
 
-}  // namespace refgrasp::robot
+void registerSimBackend() {
+  robot::registerBackend("sim", [](const robot::EnonModel& model, const robot::BackendConfig& c) {
+    const auto it = c.params.find("scenario");
+    if (it == c.params.end() || it->second.empty())
+      throw ConfigError(c.source.empty() ? model.path : c.source, "scenario",
+                        "backend 'sim' needs a scenario file");
+    return makeSimRobot(model, loadScenario(it->second));
+  });
+}
+
+}  // namespace refgrasp::sim

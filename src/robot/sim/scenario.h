@@ -13,8 +13,8 @@
 
 #include "core/pose.h"
 #include "core/types.h"
-#include "robot/degrade.h"
-#include "robot/render.h"
+#include "robot/sim/degrade.h"
+#include "robot/sim/render.h"
 
 namespace refgrasp::sim {
 

@@ -1,4 +1,4 @@
-#include "robot/degrade.h"
+#include "robot/sim/degrade.h"
 
 #include <algorithm>
 #include <array>

@@ -1,4 +1,4 @@
-#include "robot/render.h"
+#include "robot/sim/render.h"
 
 #include <algorithm>
 #include <cmath>

@@ -25,8 +25,9 @@
 #include "robot/enon_model.h"
 #include "robot/hal.h"
 #include "robot/kinematics.h"
-#include "robot/scenario.h"
-#include "robot/synthetic_camera.h"
+#include "robot/sim/scenario.h"
+#include "robot/sim/synthetic_camera.h"
+#include "robot/backend.h"
 
 namespace refgrasp::sim {
 
@@ -46,7 +47,7 @@ class SimEnon : public robot::RobotHardware {
                           Seconds valid_for_s) override;
 
   /// The stereo camera of this simulation; it must not outlive the SimEnon.
-  std::unique_ptr<robot::StereoCameraHardware> makeCamera();
+  std::unique_ptr<robot::StereoSource> makeCamera();
 
   // Ground truth (for tests, logs and evaluation).
   Seconds time() const { return time_; }
@@ -80,6 +81,7 @@ class SimEnon : public robot::RobotHardware {
   struct Snapshot {
     Seconds t;
     Pose wMl;
+    double pan, tilt;
     std::vector<Pose> wMo;
   };
 
@@ -114,5 +116,13 @@ class SimEnon : public robot::RobotHardware {
   std::deque<Snapshot> history_;
   std::optional<SyntheticFrame> last_frame_;
 };
+
+/// A Robot on the simulated enon for a scenario already in memory (tests, demos). Its hardware()
+/// is the SimEnon (ground truth through dynamic_cast<SimEnon&>).
+std::unique_ptr<robot::Robot> makeSimRobot(const robot::EnonModel& model, const Scenario& scenario);
+
+/// Registers backend "sim" (robot/backend.h). Settings: `scenario` (required), the scenario YAML.
+/// Throws ConfigError naming config.source (or the model file) and `scenario` when it is missing.
+void registerSimBackend();
 
 }  // namespace refgrasp::sim

@@ -6,9 +6,9 @@
 #include <opencv2/core.hpp>
 
 #include "robot/hal.h"
-#include "robot/scenario.h"
-#include "robot/sim_enon.h"
-#include "robot_test_util.h"
+#include "robot/sim/scenario.h"
+#include "robot/sim/sim_enon.h"
+#include "sim_test_util.h"
 
 using namespace refgrasp;
 using namespace refgrasp::robot;
@@ -128,6 +128,37 @@ TEST(SimEnonCamera, DelayedFramesShowTheTruePoseAtCaptureTime) {
   EXPECT_GT(rotationError(truth->left_cMo[0], cMo_now), 0.04);
 }
 
+// The frame reports the head joints and the camera pose at its exposure, not at delivery: with a
+// 0.1 s frame delay and the head panning at a constant rate, they follow the closed form at the
+// stamp; the odometry at capture is the base's (no odometry noise configured) at the stamp.
+TEST(SimEnonCamera, DelayedFramesCarryTheHeadStateAtCapture) {
+  Scenario sc = planeScenario(10);
+  sc.faults.frame_delay_s = 0.1;
+  testing_util::SimRig r(sc);
+  const double dt = r.model.control_period_s, pan_rate = 0.3, w = 0.2;
+  int frames = 0;
+  for (int k = 0; k <= 40; ++k) {
+    const double t = k * dt;
+    ASSERT_EQ(r.robot->read(t, dt), ReturnType::kOk);
+    std::optional<StereoFrame> f;
+    ASSERT_EQ(r.robot->camera().grab(t, &f), ReturnType::kOk);
+    if (f && f->stamp > 0) {
+      ++frames;
+      ASSERT_TRUE(f->capture.head && f->capture.bMc && f->capture.wMb_odom);
+      EXPECT_NEAR(f->capture.head->pan_rad, pan_rate * f->stamp, 1e-9) << f->stamp;
+      EXPECT_LT(rotationError(*f->capture.bMc, headCameraPose(r.model.head, pan_rate * f->stamp, 0)),
+                1e-9);
+      const Pose wMb = PlanarPose{0, 0, w * f->stamp}.toPose();
+      EXPECT_LT(rotationError(*f->capture.wMb_odom, wMb), 1e-9);
+      EXPECT_GT(std::abs(r.robot->state().pan_rad - f->capture.head->pan_rad), 0.02);
+    }
+    r.robot->head().setVelocity(pan_rate, 0);
+    r.robot->base().setVelocity(0, w);
+    ASSERT_EQ(r.robot->write(t, dt), ReturnType::kOk);
+  }
+  EXPECT_GE(frames, 5);
+}
+
 TEST(SimEnonCamera, SameSeedSameImagesBitForBit) {
   auto run = [](uint64_t seed) {
     Scenario sc = sim::loadScenario(scenarioPath("table_clutter.yaml"));
@@ -161,7 +192,7 @@ TEST(SimEnonCamera, SameSeedSameImagesBitForBit) {
 TEST(SimEnonCamera, EveryShippedScenarioRunsOnTheSimulatedEnon) {
   for (const char* name : {"table_single.yaml", "table_clutter.yaml", "faults.yaml"}) {
     const Scenario sc = sim::loadScenario(scenarioPath(name));
-    auto robot = makeRobot(testing_util::enonModel(), "sim", &sc);
+    auto robot = sim::makeSimRobot(testing_util::enonModel(), sc);
     ASSERT_EQ(robot->configure(), ReturnType::kOk);
     ASSERT_EQ(robot->activate(), ReturnType::kOk);
     int frames = 0;

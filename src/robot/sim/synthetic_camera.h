@@ -9,9 +9,9 @@
 #include "core/camera.h"
 #include "core/pose.h"
 #include "core/types.h"
-#include "robot/degrade.h"
-#include "robot/render.h"
-#include "robot/scenario.h"
+#include "robot/sim/degrade.h"
+#include "robot/sim/render.h"
+#include "robot/sim/scenario.h"
 
 namespace refgrasp::sim {
 

@@ -1,0 +1,9 @@
+#pragma once
+// Registers every robot backend this build has (target refgrasp_robot_backends, which links each
+// backend library): "sim" now. Apps call it once before robot::makeRobot (robot/backend.h).
+namespace refgrasp::robot {
+
+/// Idempotent.
+void registerBuiltinBackends();
+
+}  // namespace refgrasp::robot

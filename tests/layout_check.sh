@@ -1,0 +1,28 @@
+#!/usr/bin/env bash
+# The dependency rules of DEVELOPERS.md, checked on the source tree (ctest: Layout.*).
+# Usage: tests/layout_check.sh [SOURCE_DIR]. Prints every violation; exit 1 if there is one.
+set -u
+cd "${1:-$(dirname "$0")/..}" || exit 2
+fail=0
+violation() { echo "layout: $1"; fail=1; }
+
+# The HAL knows no backend: no backend namespace or header in src/robot/*.{h,cpp}
+# (backends.cpp, the registry of built-in backends, is its own library).
+hits=$(grep -ln "namespace refgrasp::sim" src/robot/*.h 2>/dev/null)
+[ -z "$hits" ] || violation "backend namespace in HAL headers: $hits"
+for f in src/robot/*.h src/robot/*.cpp; do
+  [ "$(basename "$f")" = backends.cpp ] && continue
+  grep -Hn '#include "robot/[a-z0-9_]*/' "$f" && violation "$f includes a backend header"
+done
+# Backends never include another backend.
+for d in src/robot/*/; do
+  b=$(basename "$d")
+  grep -HnE "#include \"robot/[a-z0-9_]+/" "$d"*.h "$d"*.cpp 2>/dev/null | grep -v "\"robot/$b/" &&
+    violation "backend $b includes another backend"
+done
+# core depends on nothing of ours; detector never on ViSP, robot or servo; servo never on a backend.
+grep -HnE '#include "(detector|servo|robot)/' src/core/* && violation "core includes another module"
+grep -HnE '#include [<"]visp3?/|#include "(servo|robot)/' src/detector/* && violation "detector includes ViSP, servo or robot"
+grep -HnE '#include "robot/[a-z0-9_]+/' src/servo/* && violation "servo includes a backend header"
+[ $fail -eq 0 ] && echo "layout: ok"
+exit $fail
