@@ -4,6 +4,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/error.h"
+#include "core/geometry.h"
 #include "detector/homography.h"
 
 namespace refgrasp::detector {
@@ -66,15 +67,12 @@ int Detector::addObject(const ObjectModel& object) {
   e.index = buildReferenceIndex(std::move(f), polygon, opt_.match);
   // Dense refinement needs an undistorted reference whose pattern region is its bounding box.
   if (object.target && (!object.camera || !object.camera->hasDistortion())) {
-    double area = 0, minx = 1e300, miny = 1e300, maxx = -1e300, maxy = -1e300;
-    for (size_t i = 0; i < polygon.size(); ++i) {
-      const Eigen::Vector2d& p = polygon[i];
-      const Eigen::Vector2d& n = polygon[(i + 1) % polygon.size()];
-      area += p.x() * n.y() - n.x() * p.y();
+    double minx = 1e300, miny = 1e300, maxx = -1e300, maxy = -1e300;
+    for (const Eigen::Vector2d& p : polygon) {
       minx = std::min(minx, p.x()), maxx = std::max(maxx, p.x());
       miny = std::min(miny, p.y()), maxy = std::max(maxy, p.y());
     }
-    if (0.5 * std::abs(area) >= 0.98 * (maxx - minx) * (maxy - miny))
+    if (std::abs(signedArea(polygon)) >= 0.98 * (maxx - minx) * (maxy - miny))
       e.pyramid = buildReferencePyramid(object.reference);
   }
   objects_.push_back(std::move(e));

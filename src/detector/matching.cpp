@@ -11,6 +11,7 @@
 #include <unordered_map>
 
 #include "core/error.h"
+#include "core/geometry.h"
 #include "detector/homography.h"
 
 #if defined(__x86_64__) || defined(__i386__)
@@ -702,17 +703,9 @@ ReferenceIndex buildReferenceIndex(Features f, const std::vector<Vec2>& polygon,
   cv::convexHull(poly, hull, /*clockwise=*/false);
   for (const auto& p : hull) ri.hull_px.emplace_back(p.x, p.y);
   // Centroid of the polygon (area-weighted), bounding-box diagonal.
-  double a2 = 0, cx = 0, cy = 0;
-  const int np = static_cast<int>(ri.polygon_px.size());
-  for (int i = 0; i < np; ++i) {
-    const Vec2 &p = ri.polygon_px[i], &q = ri.polygon_px[(i + 1) % np];
-    const double c = p.x() * q.y() - q.x() * p.y();
-    a2 += c;
-    cx += (p.x() + q.x()) * c;
-    cy += (p.y() + q.y()) * c;
-  }
-  refgrasp::check(std::abs(a2) > 1e-9, "buildReferenceIndex", "pattern polygon has zero area");
-  ri.centre_px = Vec2(cx, cy) / (3 * a2);
+  refgrasp::check(std::abs(shoelace2(ri.polygon_px.data(), ri.polygon_px.size())) > 1e-9,
+                  "buildReferenceIndex", "pattern polygon has zero area");
+  ri.centre_px = polygonCentroid(ri.polygon_px);
   Eigen::Vector2d lo = ri.polygon_px[0], hi = ri.polygon_px[0];
   for (const auto& p : ri.polygon_px) {
     lo = lo.cwiseMin(p);

@@ -5,6 +5,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "core/error.h"
+#include "core/geometry.h"
 #include "core/yaml.h"
 
 namespace refgrasp::detector {
@@ -39,12 +40,6 @@ bool isSimplePolygon(const std::vector<Eigen::Vector2d>& p) {
       if (segmentsIntersect(p[i], p[(i + 1) % n], p[j], p[(j + 1) % n])) return false;
     }
   return true;
-}
-
-double polygonArea(const std::vector<Eigen::Vector2d>& p) {
-  double a = 0;
-  for (size_t i = 0; i < p.size(); ++i) a += cross2(p[i], p[(i + 1) % p.size()]);
-  return 0.5 * a;
 }
 
 }  // namespace
@@ -93,7 +88,7 @@ ObjectModel makeObjectModel(const std::string& name, const cv::Mat& reference_gr
                                    std::to_string(W) + "x" + std::to_string(H) + " image");
     }
     if (!isSimplePolygon(polygon)) fail("pattern_region", "polygon is self-intersecting");
-    if (std::abs(polygonArea(polygon)) < 16.0) fail("pattern_region", "polygon area below 16 px^2");
+    if (std::abs(signedArea(polygon)) < 16.0) fail("pattern_region", "polygon area below 16 px^2");
   }
 
   ObjectModel m;

@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "core/error.h"
+#include "core/geometry.h"
 
 namespace refgrasp::detector {
 
@@ -31,11 +32,7 @@ const char* sanityStatusName(SanityStatus s) {
   return "?";
 }
 
-double quadArea(const std::array<Eigen::Vector2d, 4>& q) {
-  double a = 0;
-  for (int i = 0; i < 4; ++i) a += q[i].x() * q[(i + 1) % 4].y() - q[(i + 1) % 4].x() * q[i].y();
-  return 0.5 * a;
-}
+double quadArea(const std::array<Eigen::Vector2d, 4>& q) { return signedArea(q); }
 
 bool isConvexQuad(const std::array<Eigen::Vector2d, 4>& q) {
   int pos = 0, neg = 0;
