@@ -172,6 +172,12 @@ Eigen::Matrix3d fitHomographyLeastSquares(const std::vector<Vec2>& from, const s
 HomographyResult estimateHomography(const std::vector<Vec2>& from, const std::vector<Vec2>& to,
                                     const HomographyOptions& opt) {
   opt.check();
+  return estimateHomographyUnchecked(from, to, opt);
+}
+
+HomographyResult estimateHomographyUnchecked(const std::vector<Vec2>& from,
+                                             const std::vector<Vec2>& to,
+                                             const HomographyOptions& opt) {
   HomographyResult res;
   const int n = static_cast<int>(from.size());
   if (n < 4 || static_cast<int>(to.size()) != n) return res;

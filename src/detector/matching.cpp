@@ -97,6 +97,7 @@ struct Context {
   const GridIndex& grid;
   const MatchOptions& opt;
   IntegerDescriptors scene_desc;  // scene.descriptors for the integer kernels
+  MatchRejects* rejects;          // counts why hypotheses and fits ended
   double min_scene_size = 0;
   double max_dd2 = 0;
   cv::Rect2d bounds;
@@ -177,7 +178,12 @@ HomographyOptions homographyOptions(const MatchOptions& opt) {
 
 /// Robust homography from matches; fills a candidate when it passes min_inliers and plausibility.
 bool makeCandidate(const Context& cx, const std::vector<Correspondence>& matches, Candidate* c) {
-  if (static_cast<int>(matches.size()) < std::max(4, cx.opt.min_inliers)) return false;
+  auto reject = [](int* counter) {
+    ++*counter;
+    return false;
+  };
+  int* too_few = &cx.rejects->too_few_inliers;
+  if (static_cast<int>(matches.size()) < std::max(4, cx.opt.min_inliers)) return reject(too_few);
   std::vector<Vec2> a, b;
   a.reserve(matches.size());
   b.reserve(matches.size());
@@ -185,8 +191,8 @@ bool makeCandidate(const Context& cx, const std::vector<Correspondence>& matches
     a.push_back(pt(cx.ref.features.keypoints[m.ref]));
     b.push_back(pt(cx.scene.keypoints[m.scene]));
   }
-  HomographyResult hr = estimateHomography(a, b, homographyOptions(cx.opt));
-  if (!hr.ok || static_cast<int>(hr.inliers.size()) < cx.opt.min_inliers) return false;
+  HomographyResult hr = estimateHomographyUnchecked(a, b, homographyOptions(cx.opt));
+  if (!hr.ok || static_cast<int>(hr.inliers.size()) < cx.opt.min_inliers) return reject(too_few);
   {
     // Tighten to 3 sigma of the fit (the RANSAC threshold admits coarse mismatches), refit.
     const double tight = std::max(1.0, 3 * hr.rms_px);
@@ -198,17 +204,19 @@ bool makeCandidate(const Context& cx, const std::vector<Correspondence>& matches
         ka.push_back(a[k]);
         kb.push_back(b[k]);
       }
-    if (static_cast<int>(keep.size()) < cx.opt.min_inliers) return false;
+    if (static_cast<int>(keep.size()) < cx.opt.min_inliers) return reject(too_few);
     const Eigen::Matrix3d Ht = fitHomographyLeastSquares(ka, kb);
-    if (!Ht.allFinite()) return false;
+    if (!Ht.allFinite()) return reject(too_few);
     hr.H = Ht;
     hr.inliers = keep;
   }
-  if (!homographyPlausible(hr.H, cx.ref.hull_px, kMinAreaPx2)) return false;
+  if (!homographyPlausible(hr.H, cx.ref.hull_px, kMinAreaPx2))
+    return reject(&cx.rejects->implausible_homography);
   std::vector<cv::Point2f> in, hull;
   for (int k : hr.inliers) in.push_back(cx.ref.features.keypoints[matches[k].ref].pt);
   cv::convexHull(in, hull);
-  if (cv::contourArea(hull) < cx.opt.min_inlier_spread * cx.ref.feature_hull_area_px2) return false;
+  if (cv::contourArea(hull) < cx.opt.min_inlier_spread * cx.ref.feature_hull_area_px2)
+    return reject(&cx.rejects->narrow_inlier_spread);
   c->H = hr.H;
   c->inliers.clear();
   double sum = 0;
@@ -289,11 +297,15 @@ bool evaluateHypothesis(const Context& cx, int r, int s, Candidate* out) {
   auto simRadius = [&](const Vec2& xs) {
     return factor * (kSimilarityErrorPx + kSimilarityErrorPerPx * (xs - seed).norm());
   };
+  auto tooFewLocal = [&] {
+    ++cx.rejects->too_few_local_matches;
+    return false;
+  };
   std::vector<LocalMatch> m;
   localSearch(cx, sim, &cx.ref.neighbours[r], simRadius, &m, kQuickNeighbours);
-  if (static_cast<int>(m.size()) < kQuickMinMatches) return false;
+  if (static_cast<int>(m.size()) < kQuickMinMatches) return tooFewLocal();
   localSearch(cx, sim, &cx.ref.neighbours[r], simRadius, &m);
-  if (static_cast<int>(m.size()) < kPass1MinMatches) return false;
+  if (static_cast<int>(m.size()) < kPass1MinMatches) return tooFewLocal();
 
   // A homography fitted to a neighbourhood extrapolates with an error that grows with the
   // distance from it; the second fit covers the whole pattern and is trusted uniformly.
@@ -303,8 +315,8 @@ bool evaluateHypothesis(const Context& cx, int r, int s, Candidate* out) {
       a.push_back(pt(rk[x.ref]));
       b.push_back(pt(sk[x.scene]));
     }
-    const HomographyResult h = estimateHomography(a, b, homographyOptions(cx.opt));
-    if (!h.ok || static_cast<int>(h.inliers.size()) < kPass1MinMatches) return false;
+    const HomographyResult h = estimateHomographyUnchecked(a, b, homographyOptions(cx.opt));
+    if (!h.ok || static_cast<int>(h.inliers.size()) < kPass1MinMatches) return tooFewLocal();
     const Predictor hom = Predictor::homography(h.H);
     const double e0 = std::max(kHomographyErrorPx, h.rms_px);
     if (pass == 0) {
@@ -454,16 +466,23 @@ void MatchOptions::check() const {
 MatchResult matchObject(const ReferenceIndex& ref, const Features& scene, const GridIndex& grid,
                         const MatchOptions& opt) {
   opt.check();
-  MatchResult res;
-  if (ref.features.size() < 4 || scene.size() < 4) return res;
-  Context cx{ref, scene, grid, opt, integerDescriptors(scene.descriptors, false), 0, 0, {}};
+  return matchObjectUnchecked(ref, scene, grid, opt);
+}
+
+MatchResult matchObjectUnchecked(const ReferenceIndex& ref, const Features& scene,
+                                 const GridIndex& grid, const MatchOptions& opt) {
+  if (ref.features.size() < 4 || scene.size() < 4) return {};
+  MatchRejects rejects;
+  Context cx{ref, scene, grid, opt, integerDescriptors(scene.descriptors, false), &rejects, 0, 0, {}};
   double min_size = 1e9;
   for (const auto& k : scene.keypoints) min_size = std::min<double>(min_size, k.size);
   cx.min_scene_size = 0.8 * min_size;
   cx.max_dd2 = opt.max_descriptor_distance * opt.max_descriptor_distance;
   cx.bounds = cv::Rect2d(-0.5, -0.5, scene.image_size.width, scene.image_size.height);
   const std::vector<NearestTwo> nn = nearestTwo(ref.descriptors, cx.scene_desc);
-  return opt.matcher == MatcherType::kPaper ? matchPaper(cx, nn) : matchRatio(cx, nn);
+  MatchResult res = opt.matcher == MatcherType::kPaper ? matchPaper(cx, nn) : matchRatio(cx, nn);
+  res.rejected = rejects;
+  return res;
 }
 
 }  // namespace refgrasp::detector

@@ -57,11 +57,21 @@ struct MatchCandidate {
   double score = 0;
 };
 
+/// How many hypotheses (paper) or robust fits (ratio; re-fits in the selection) ended at each
+/// stage without giving a candidate.
+struct MatchRejects {
+  int too_few_local_matches = 0;   ///< paper: the local search found too few consistent matches
+  int too_few_inliers = 0;         ///< robust homography with < min_inliers inliers, or none
+  int implausible_homography = 0;  ///< flipped, non-convex, near-singular or tiny pattern
+  int narrow_inlier_spread = 0;    ///< inliers span < min_inlier_spread of the reference
+};
+
 struct MatchResult {
   /// Best first, disjoint in the scene, each with >= min_inliers and a plausible H.
   std::vector<MatchCandidate> instances;
   int hypotheses_evaluated = 0;  ///< hypotheses given a local search (paper) / 1 (ratio)
   int global_matches = 0;        ///< scene features passing the global ratio test
+  MatchRejects rejected;
 };
 
 /// Finds up to opt.max_instances instances of the reference in the scene. grid must index
@@ -100,7 +110,11 @@ struct MatchResult {
 ///     more than twice its inliers is dropped, so few matches never beat many; the rest are
 ///     ranked by eq. 3 (lower first) and taken greedily without overlap, scene features used
 ///     once (a candidate losing features is re-fitted and re-checked).
+/// Throws std::invalid_argument when opt.check() fails.
 MatchResult matchObject(const ReferenceIndex& ref, const Features& scene, const GridIndex& grid,
                         const MatchOptions& opt);
+/// matchObject for callers that checked opt once (the Detector, per frame): never checks.
+MatchResult matchObjectUnchecked(const ReferenceIndex& ref, const Features& scene,
+                                 const GridIndex& grid, const MatchOptions& opt);
 
 }  // namespace refgrasp::detector
