@@ -28,6 +28,29 @@ Eigen::Vector2d polygonCentroid(const std::vector<Eigen::Vector2d>& polygon) {
   return Eigen::Vector2d(cx, cy) / (3 * a2);
 }
 
+std::vector<Eigen::Vector2d> clipToBox(const std::vector<Eigen::Vector2d>& polygon,
+                                       const Eigen::Vector2d& lo, const Eigen::Vector2d& hi) {
+  std::vector<Eigen::Vector2d> out = polygon, in;
+  // One half-plane per box side: coordinate `axis` times `sign` <= `sign` x bound.
+  for (int side = 0; side < 4 && !out.empty(); ++side) {
+    const int axis = side % 2;
+    const double sign = side < 2 ? -1 : 1;
+    const double bound = side < 2 ? lo[axis] : hi[axis];
+    auto inside = [&](const Eigen::Vector2d& p) { return sign * (p[axis] - bound) <= 0; };
+    in.swap(out);
+    out.clear();
+    for (size_t i = 0; i < in.size(); ++i) {
+      const Eigen::Vector2d &a = in[i], &b = in[(i + 1) % in.size()];
+      if (inside(a)) out.push_back(a);
+      if (inside(a) != inside(b)) {
+        const double t = (bound - a[axis]) / (b[axis] - a[axis]);
+        out.push_back(a + t * (b - a));
+      }
+    }
+  }
+  return out;
+}
+
 Eigen::Matrix3d hartleyNormalization(const std::vector<Eigen::Vector2d>& p) {
   Eigen::Vector2d c = Eigen::Vector2d::Zero();
   for (const auto& x : p) c += x;

@@ -20,6 +20,11 @@ double signedArea(const Polygon& polygon) {
 /// Area-weighted centroid. Needs a non-zero area; returns NaN coordinates otherwise.
 Eigen::Vector2d polygonCentroid(const std::vector<Eigen::Vector2d>& polygon);
 
+/// The part of a simple polygon (any winding, convex or not) inside the axis-aligned box
+/// [lo, hi] (Sutherland-Hodgman): its area is the intersection's; empty when they do not meet.
+std::vector<Eigen::Vector2d> clipToBox(const std::vector<Eigen::Vector2d>& polygon,
+                                       const Eigen::Vector2d& lo, const Eigen::Vector2d& hi);
+
 /// Isotropic (Hartley) normalisation: the similarity T with T x = s (x - c), c the centroid and
 /// s making the mean distance from it sqrt(2) (s = 1 for coincident points).
 Eigen::Matrix3d hartleyNormalization(const std::vector<Eigen::Vector2d>& points);

@@ -43,3 +43,18 @@ TEST(Geometry, HartleyNormalizationCentresAndScales) {
   EXPECT_DOUBLE_EQ(U(0, 0), 1.0);
   EXPECT_DOUBLE_EQ(U(0, 2), -7.0);
 }
+
+TEST(Geometry, ClipToBoxKeepsTheInsidePart) {
+  const Vec2 lo(0, 0), hi(10, 10);
+  // A square half outside to the right: 5 x 6 inside.
+  EXPECT_NEAR(signedArea(clipToBox({Vec2(5, 2), Vec2(15, 2), Vec2(15, 8), Vec2(5, 8)}, lo, hi)), 30, 1e-12);
+  // Covering the box: the box itself, either winding.
+  EXPECT_NEAR(signedArea(clipToBox({Vec2(-5, -5), Vec2(20, -5), Vec2(20, 20), Vec2(-5, 20)}, lo, hi)), 100, 1e-12);
+  EXPECT_NEAR(signedArea(clipToBox({Vec2(-5, 20), Vec2(20, 20), Vec2(20, -5), Vec2(-5, -5)}, lo, hi)), -100, 1e-12);
+  // Concave (a U open at the top, legs 2 wide, base 2 high) cut by the box's top edge at y = 0.
+  const std::vector<Vec2> u = {Vec2(1, -4), Vec2(3, -4), Vec2(3, 6), Vec2(7, 6), Vec2(7, -4),
+                               Vec2(9, -4), Vec2(9, 8), Vec2(1, 8)};
+  EXPECT_NEAR(signedArea(clipToBox(u, lo, hi)), 2 * 2 * 6 + 8 * 2, 1e-12);
+  // Entirely outside.
+  EXPECT_TRUE(clipToBox({Vec2(11, 0), Vec2(20, 0), Vec2(15, 5)}, lo, hi).empty());
+}

@@ -11,6 +11,7 @@
 #include "common/synthetic_scene.h"
 #include "detector/detector.h"
 #include "detector/detector_internal.h"
+#include "detector/homography.h"
 
 using namespace refgrasp;
 using namespace refgrasp::detector;
@@ -342,6 +343,62 @@ TEST(Detector, DistortedSceneKeepsTheDenseRefinementAccuracy) {
   EXPECT_LT(worst_distorted, 0.35);
   EXPECT_LT(worst_distorted, 2.0 * worst_ideal + 0.05);
   EXPECT_LT(worst_distorted, worst_features);
+}
+
+TEST(Detector, CroppedReferenceWithRegionPastItsBorder) {
+  // The reference photo shows only the middle of the poster (cropped unevenly); its outline, the
+  // pattern region, runs past the photo on every side. Features come from the photo, corners and
+  // pose from the outline: the full poster's corners and pose are recovered.
+  const cv::Mat tex = loadMedia(kTexture);
+  const int left = 30, top = 20, right = 10, bottom = 25;
+  const cv::Mat crop = tex(cv::Rect(left, top, tex.cols - left - right, tex.rows - top - bottom)).clone();
+  const Intrinsics full_cam = textureCamera(tex, kWidth, 0.5);
+  const Intrinsics crop_cam = Intrinsics::pinhole(crop.cols, crop.rows, full_cam.fx,
+                                                  full_cam.cx - left, full_cam.cy - top);
+  const std::vector<Eigen::Vector2d> outline = {
+      {-0.5 - left, -0.5 - top}, {tex.cols - 0.5 - left, -0.5 - top},
+      {tex.cols - 0.5 - left, tex.rows - 0.5 - top}, {-0.5 - left, tex.rows - 0.5 - top}};
+  const ObjectModel cropped = makeObjectModel("cropped", crop, crop_cam,
+                                              Pose(Eigen::Matrix3d::Identity(), {0, 0, 0.5}), outline);
+  const ObjectModel whole = textureObject("whole", tex, kWidth);
+  for (int i = 0; i < 4; ++i)
+    EXPECT_LT((cropped.target->corners_o[i] - whole.target->corners_o[i]).norm(), 1e-12) << i;
+
+  const Intrinsics cam = sceneCamera();
+  DetectorOptions features_only;
+  features_only.dense.enabled = false;
+  Detector det, det_features(features_only);
+  det.addObject(cropped);
+  det_features.addObject(cropped);
+  for (int i = 0; i < 4; ++i) {
+    SceneSpec spec;
+    spec.cMo = Pose::fromRotationVector({0.2 - 0.1 * i, 0.15 * i, 0.3 * i}, {0.05 - 0.03 * i, 0.02, 0.55 + 0.1 * i});
+    spec.seed = 90 + i;
+    const RenderedScene s = renderTarget(cam, tex, kWidth, heightOf(tex, kWidth), spec);
+    for (const Detector* d : {&det, &det_features}) {
+      const std::optional<Detection> found = d->detect(s.image, cam).find(0);
+      ASSERT_TRUE(found && found->cMo) << "pose " << i;
+      EXPECT_LT(rotationError(*found->cMo, s.cMo), 0.5 * kDeg) << i;
+      EXPECT_LT(translationError(*found->cMo, s.cMo), 0.005 * s.cMo.t.norm()) << i;
+      EXPECT_LT(cornerError(found->corners, s.corners), 1.5) << i;
+    }
+    // Dense refinement on this reference: the template is the part of the outline inside the
+    // photo. From the true H moved by ~1.5 px it converges back.
+    std::vector<Eigen::Vector2d> ref_corners(outline.begin(), outline.end()),
+        scene_corners(s.corners.begin(), s.corners.end());
+    const Eigen::Matrix3d H = fitHomographyLeastSquares(ref_corners, scene_corners);
+    Eigen::Matrix3d shift = Eigen::Matrix3d::Identity();
+    shift(0, 2) = 1.2;
+    shift(1, 2) = -0.9;
+    std::array<Eigen::Vector2d, 4> rect;
+    std::copy(outline.begin(), outline.end(), rect.begin());
+    const DenseRefineResult dr =
+        refineHomographyDense(buildReferencePyramid(crop), s.image, shift * H, rect, DenseRefineOptions{});
+    ASSERT_TRUE(dr.ok) << i;
+    double err = 0;
+    for (int k = 0; k < 4; ++k) err = std::max(err, (applyHomography(dr.H, rect[k]) - s.corners[k]).norm());
+    EXPECT_LT(err, 0.5) << i;
+  }
 }
 
 TEST(Detector, InputChecks) {
