@@ -8,14 +8,14 @@
 namespace refgrasp::detector {
 
 void SanityOptions::check() const {
-  refgrasp::check(std::isfinite(min_distance_m) && min_distance_m >= 0, "SanityOptions",
-                  "min_distance_m must be finite and >= 0");
+  refgrasp::check(std::isfinite(min_distance_m) && min_distance_m >= 0,
+                  "SanityOptions.min_distance_m", "must be finite and >= 0");
   refgrasp::check(std::isfinite(max_distance_m) && max_distance_m > min_distance_m,
-                  "SanityOptions", "max_distance_m must be finite and > min_distance_m");
-  refgrasp::check(std::isfinite(min_area_px2) && min_area_px2 >= 0, "SanityOptions",
-                  "min_area_px2 must be >= 0");
-  refgrasp::check(std::isfinite(max_area_fraction) && max_area_fraction > 0, "SanityOptions",
-                  "max_area_fraction must be positive");
+                  "SanityOptions.max_distance_m", "must be finite and > min_distance_m");
+  refgrasp::check(std::isfinite(min_area_px2) && min_area_px2 >= 0, "SanityOptions.min_area_px2",
+                  "must be >= 0");
+  refgrasp::check(std::isfinite(max_area_fraction) && max_area_fraction > 0,
+                  "SanityOptions.max_area_fraction", "must be positive");
 }
 
 const char* sanityStatusName(SanityStatus s) {
