@@ -1,7 +1,7 @@
 #pragma once
 // The detector facade: the small stable API a tracker, a replay tool or a DDS node calls.
 //
-//   Detector det(loadDetectorOptions("config/detector.yaml"));   // or DetectorOptions{}
+//   Detector det(loadDetectorOptions("config/detector.yaml"));   // detector_config.h, or {}
 //   int id = det.addObject(loadObjectDefinition("config/objects/poster.yaml"));
 //   DetectionResult r = det.detect(gray, camera, {t_s, index});  // one SIFT extraction for all objects
 //   if (const std::optional<Detection> d = r.find(id)) use(d->cMo);
@@ -132,6 +132,7 @@ struct DetectionResult {
   std::string error;  ///< one line when !ok
   FrameStamp frame;   ///< as given to detect()
   /// Per object in id order: its found instances (best first), or one entry with found = false.
+  /// Empty when !ok, like stats.
   std::vector<Detection> detections;
   std::vector<ObjectStats> stats;  ///< one per object, id order
   DetectionTimings time_ms;
