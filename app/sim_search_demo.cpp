@@ -7,11 +7,11 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "core/error.h"
+#include "core/json.h"
 #include "detector/detector.h"
 #include "robot/hal.h"
 #include "servo/search.h"
@@ -19,7 +19,6 @@
 #include "robot/sim/sim_enon.h"
 
 using namespace refgrasp;
-using json = nlohmann::json;
 
 namespace {
 
@@ -34,10 +33,8 @@ struct DemoOptions {
   double turn_rad = 1.0;        // base turn once every head position was tried
 };
 
-json poseJson(const Pose& p) {
-  const Eigen::Vector3d r = p.rotationVector();
-  return {{"t", {p.t.x(), p.t.y(), p.t.z()}}, {"rotation_vector", {r.x(), r.y(), r.z()}}};
-}
+// Poses in looks.jsonl: {"t": [m], "rotation_vector": [rad]}.
+Json poseRv(const Pose& p) { return poseJson(p, PoseJsonForm::kRotationVector); }
 
 // Draws the detected pattern outline and the object axes (x red, y green, z blue; 10 cm).
 cv::Mat annotate(const cv::Mat& gray, const detector::Detection& d, const Intrinsics& cam,
@@ -107,7 +104,7 @@ int run(const DemoOptions& o) {
     const servo::SearchLook& look = *step.look;
     const detector::StereoDetection& s = look.detection;
     const robot::StereoFrame& frame = look.frame;
-    json line = {{"t_s", t}, {"frame", frame.index}, {"pan_rad", robot->state().pan_rad},
+    Json line = {{"t_s", t}, {"frame", frame.index}, {"pan_rad", robot->state().pan_rad},
                  {"tilt_rad", robot->state().tilt_rad}, {"left_found", s.left.found},
                  {"right_found", s.right.found}, {"extract_ms", look.extract_ms},
                  {"total_ms", look.total_ms}};
@@ -117,14 +114,14 @@ int run(const DemoOptions& o) {
       const Pose& lMo = *s.fused.lMo;
       // Ground truth of the same frame, from the simulator.
       const sim::SyntheticFrame* truth = sim ? sim->lastFrame() : nullptr;
-      line["lMo"] = poseJson(lMo);
+      line["lMo"] = poseRv(lMo);
       line["eyes"] = std::string(s.left.found ? "L" : "") + (s.right.found ? "R" : "");
       std::string summary = "found";
       if (truth && truth->stamp == frame.stamp) {
         const Pose& lMo_true = truth->left_cMo.at(target);
         const double terr = translationError(lMo, lMo_true);
         const double rerr = rotationError(lMo, lMo_true) * 180 / M_PI;
-        line["lMo_true"] = poseJson(lMo_true);
+        line["lMo_true"] = poseRv(lMo_true);
         line["translation_error_m"] = terr;
         line["rotation_error_deg"] = rerr;
         char buf[160];
@@ -133,7 +130,7 @@ int run(const DemoOptions& o) {
         summary = buf;
       }
       const Pose wMo = sim ? sim->wMc() * lMo : Pose();
-      line["wMo"] = poseJson(wMo);
+      line["wMo"] = poseRv(wMo);
       std::printf("  fused pose (left camera): t = [%.3f %.3f %.3f] m; %s\n", lMo.t.x(),
                   lMo.t.y(), lMo.t.z(), summary.c_str());
       const Intrinsics& lc = robot->camera().rig().left;

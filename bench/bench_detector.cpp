@@ -9,6 +9,7 @@
 
 #include "robot/sim/synthetic_scene.h"
 #include "detector/detector.h"
+#include "detector/detector_internal.h"
 
 using namespace refgrasp;
 using namespace refgrasp::detector;
@@ -88,14 +89,14 @@ int main(int argc, char** argv) {
     Features f;
     const double sift = timeMs([&] { f = extractSift(img, det.options().sift); });
     n_features += f.size();
-    f.image = img;  // as Detector::extract keeps it: the refined pose refines H densely (ECC)
+    f.image = img;  // as DetectorInternals::extract keeps it: the refined pose refines H densely (ECC)
     const GridIndex grid(f.keypoints, f.image_size);
     MatchResult mp, mr;
-    t_paper.push_back(timeMs([&] { mp = matchObject(det.referenceIndex(id), f, grid, det.options().match); }));
-    t_ratio.push_back(timeMs([&] { mr = matchObject(det.referenceIndex(id), f, grid, ratio_opt); }));
+    t_paper.push_back(timeMs([&] { mp = matchObject(DetectorInternals::referenceIndex(det, id), f, grid, det.options().match); }));
+    t_ratio.push_back(timeMs([&] { mr = matchObject(DetectorInternals::referenceIndex(det, id), f, grid, ratio_opt); }));
     if (!mp.instances.empty()) {
-      t_ppose.push_back(timeMs([&] { det.estimatePose(id, mp.instances[0], f, cam, PoseMethod::kPaper); }));
-      t_rpose.push_back(timeMs([&] { det.estimatePose(id, mp.instances[0], f, cam, PoseMethod::kRefined); }));
+      t_ppose.push_back(timeMs([&] { DetectorInternals::estimatePose(det, id, mp.instances[0], f, cam, PoseMethod::kPaper); }));
+      t_rpose.push_back(timeMs([&] { DetectorInternals::estimatePose(det, id, mp.instances[0], f, cam, PoseMethod::kRefined); }));
     }
     DetectionResult r;
     const double whole = timeMs([&] { r = det.detect(img, cam); });
@@ -107,7 +108,7 @@ int main(int argc, char** argv) {
   std::printf("bench_detector: %d frames 640x480, %.0f scene features on average, %d reference "
               "features, found %d/%d\n",
               frames, static_cast<double>(n_features) / frames,
-              det.referenceIndex(id).features.size(), found, frames);
+              DetectorInternals::referenceIndex(det, id).features.size(), found, frames);
   std::printf("| stage                              | median ms |\n|---|---|\n");
   std::printf("| SIFT extraction alone              | %9.2f |\n", median(t_sift));
   std::printf("| paper matcher                      | %9.2f |\n", median(t_paper));

@@ -54,6 +54,15 @@ void YamlFile::fail(const std::string& field, const std::string& problem) const 
   throw ConfigError(path_, field, problem);
 }
 
+void YamlFile::onlyKeys(const YAML::Node& node, const std::string& where,
+                        const std::set<std::string>& keys) const {
+  if (!node.IsMap()) fail(where, "expected a mapping");
+  for (const auto& kv : node) {
+    const std::string k = kv.first.as<std::string>();
+    if (!keys.count(k)) fail(where.empty() ? k : where + "." + k, "unknown field");
+  }
+}
+
 static bool toDouble(const YAML::Node& n, double* out) {
   if (!n.IsScalar()) return false;
   try {

@@ -3,6 +3,7 @@
 #include <yaml-cpp/yaml.h>
 
 #include <Eigen/Core>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -42,6 +43,11 @@ class YamlFile {
   Eigen::Vector3d vec3(const YAML::Node& node, const std::string& field) const;
   /// A pose written as {translation: [x,y,z] (metres), rotation_vector: [rx,ry,rz] (radians)}.
   Pose pose(const YAML::Node& node, const std::string& field) const;
+
+  /// Fails "<where>: expected a mapping" unless node is a map, and "<where>.<key>: unknown field"
+  /// for a key not in `keys` (typos). where = "" for the top level.
+  void onlyKeys(const YAML::Node& node, const std::string& where,
+                const std::set<std::string>& keys) const;
 
   [[noreturn]] void fail(const std::string& field, const std::string& problem) const;
 

@@ -7,22 +7,9 @@
 #include <opencv2/video/tracking.hpp>
 
 #include "core/error.h"
+#include "core/geometry.h"
 
 namespace refgrasp::detector {
-
-namespace {
-
-double quadArea(const std::array<Eigen::Vector2d, 4>& q) {
-  double a = 0;
-  for (int i = 0; i < 4; ++i) {
-    const Eigen::Vector2d& p = q[i];
-    const Eigen::Vector2d& n = q[(i + 1) % 4];
-    a += p.x() * n.y() - n.x() * p.y();
-  }
-  return 0.5 * std::abs(a);
-}
-
-}  // namespace
 
 void DenseRefineOptions::check() const {
   const std::string w = "DenseRefineOptions";
@@ -66,7 +53,7 @@ DenseRefineResult refineHomographyDense(const std::vector<cv::Mat>& ref_pyramid,
     proj[i] = q.head<2>() / q.z();
     if (!proj[i].allFinite()) return res;
   }
-  const double a_ref = quadArea(pattern_rect), a_scene = quadArea(proj);
+  const double a_ref = std::abs(signedArea(pattern_rect)), a_scene = std::abs(signedArea(proj));
   if (!(a_ref > 0) || !(a_scene > 16)) return res;
 
   // Pattern bounding box in reference px.

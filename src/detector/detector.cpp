@@ -1,12 +1,24 @@
 #include "detector/detector.h"
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <new>
 #include <opencv2/imgproc.hpp>
 
 #include "core/error.h"
+#include "core/geometry.h"
+#include "detector/detector_internal.h"
 #include "detector/homography.h"
 
 namespace refgrasp::detector {
+
+struct RegisteredObject {
+  ObjectModel model;
+  ReferenceIndex index;
+  std::array<Eigen::Vector2d, 4> corners_und_px;  ///< pattern corners, undistorted ref px
+  std::vector<cv::Mat> pyramid;  ///< reference pyramid for dense refinement (empty: not usable)
+};
 
 namespace {
 
@@ -30,58 +42,8 @@ Eigen::Vector2d distortPixel(const Intrinsics& cam, const Eigen::Vector2d& und) 
                                                (und.y() - cam.cy) / cam.fy));
 }
 
-}  // namespace
-
-void DetectorOptions::check() const {
-  sift.check();
-  match.check();
-  pose_options.check();
-  dense.check();
-  sanity.check();
-}
-
-const Detection* DetectionResult::find(int object, int instance) const {
-  for (const auto& d : detections)
-    if (d.found && d.object == object && d.instance == instance) return &d;
-  return nullptr;
-}
-
-Detector::Detector(DetectorOptions opt) : opt_(std::move(opt)) { opt_.check(); }
-
-int Detector::addObject(const ObjectModel& object) {
-  if (object.reference.empty() || object.reference.type() != CV_8UC1)
-    throw ConfigError(object.source.empty() ? object.name : object.source, "reference_image",
-                      "expected a non-empty 8-bit grayscale image");
-  Entry e;
-  e.model = object;
-  Features f = extractSift(object.reference, opt_.sift);
-  std::vector<Eigen::Vector2d> polygon = object.pattern_polygon_px;
-  if (object.camera) {
-    undistortKeypoints(&f.keypoints, *object.camera);
-    for (auto& p : polygon) p = object.camera->undistortPixel(p);
-  }
-  for (int i = 0; i < 4; ++i)
-    e.corners_und_px[i] =
-        object.camera ? object.camera->undistortPixel(object.corners_px[i]) : object.corners_px[i];
-  e.index = buildReferenceIndex(std::move(f), polygon, opt_.match);
-  // Dense refinement needs an undistorted reference whose pattern region is its bounding box.
-  if (object.target && (!object.camera || !object.camera->hasDistortion())) {
-    double area = 0, minx = 1e300, miny = 1e300, maxx = -1e300, maxy = -1e300;
-    for (size_t i = 0; i < polygon.size(); ++i) {
-      const Eigen::Vector2d& p = polygon[i];
-      const Eigen::Vector2d& n = polygon[(i + 1) % polygon.size()];
-      area += p.x() * n.y() - n.x() * p.y();
-      minx = std::min(minx, p.x()), maxx = std::max(maxx, p.x());
-      miny = std::min(miny, p.y()), maxy = std::max(maxy, p.y());
-    }
-    if (0.5 * std::abs(area) >= 0.98 * (maxx - minx) * (maxy - miny))
-      e.pyramid = buildReferencePyramid(object.reference);
-  }
-  objects_.push_back(std::move(e));
-  return static_cast<int>(objects_.size()) - 1;
-}
-
-std::string Detector::validateImage(const cv::Mat& image, const Intrinsics& camera) {
+// Empty string when the image can be used with this camera, else the problem.
+std::string validateImage(const cv::Mat& image, const Intrinsics& camera) {
   if (image.empty()) return "empty image";
   if (image.depth() != CV_8U || (image.channels() != 1 && image.channels() != 3 &&
                                  image.channels() != 4))
@@ -98,17 +60,48 @@ std::string Detector::validateImage(const cv::Mat& image, const Intrinsics& came
   return "";
 }
 
-Features Detector::extract(const cv::Mat& gray, const Intrinsics& camera) const {
-  Features f = extractSift(gray, opt_.sift);
+// Empty string when the query can be used with `objects` registered objects, else the problem.
+std::string validateQuery(const DetectionQuery& q, int objects) {
+  if (q.roi && (q.roi->width <= 0 || q.roi->height <= 0)) return "query.roi: empty rectangle";
+  std::vector<char> seen(objects, 0);
+  for (size_t i = 0; i < q.priors.size(); ++i) {
+    const ObjectPrior& p = q.priors[i];
+    const std::string field = "query.priors[" + std::to_string(i) + "].";
+    if (p.object < 0 || p.object >= objects)
+      return field + "object: no object " + std::to_string(p.object) + " (" +
+             std::to_string(objects) + " registered)";
+    if (seen[p.object]++) return field + "object: a second prior for object " + std::to_string(p.object);
+    if (p.cMo && !p.cMo->isFinite()) return field + "cMo: must be finite";
+    if (p.roi.width < 0 || p.roi.height < 0) return field + "roi: negative size";
+    if (!(std::isfinite(p.roi_margin) && p.roi_margin >= 0)) return field + "roi_margin: must be >= 0";
+    if (!(std::isfinite(p.scale_margin) && p.scale_margin >= 1))
+      return field + "scale_margin: must be >= 1";
+  }
+  return "";
+}
+
+// what() of an exception on one line (OpenCV's end with a newline).
+std::string oneLine(std::string s) {
+  for (char& c : s)
+    if (c == '\n' || c == '\r') c = ' ';
+  while (!s.empty() && s.back() == ' ') s.pop_back();
+  return s;
+}
+
+Features extractFeatures(const cv::Mat& gray, const Intrinsics& camera, const SiftOptions& sift,
+                         const ExtractRegion& region) {
+  Features f = extractSiftUnchecked(gray, sift, region);
   undistortKeypoints(&f.keypoints, camera);
   if (gray.type() == CV_8UC1) f.image = gray;
   return f;
 }
 
-DenseRefineResult Detector::refineDense(const Entry& e, const Eigen::Matrix3d& H,
-                                        const cv::Mat& image, const Intrinsics& camera) const {
+// Dense refinement of H (undistorted reference px -> undistorted scene px) on `image`.
+DenseRefineResult refineDense(const RegisteredObject& e, const Eigen::Matrix3d& H,
+                              const cv::Mat& image, const Intrinsics& camera,
+                              const DenseRefineOptions& opt) {
   if (!camera.hasDistortion())
-    return refineHomographyDense(e.pyramid, image, H, e.corners_und_px, opt_.dense);
+    return refineHomographyDense(e.pyramid, image, H, e.corners_und_px, opt);
   // H lives in undistorted pixels: resample only the pattern's neighbourhood of the image onto
   // the ideal pinhole grid (never the whole frame), refine there, and move H back.
   Eigen::Vector2d lo(1e9, 1e9), hi(-1e9, -1e9);
@@ -118,7 +111,7 @@ DenseRefineResult Detector::refineDense(const Entry& e, const Eigen::Matrix3d& H
     lo = lo.cwiseMin(p);
     hi = hi.cwiseMax(p);
   }
-  const double margin = opt_.dense.max_corner_shift_px + 8;
+  const double margin = opt.max_corner_shift_px + 8;
   const int x0 = static_cast<int>(std::floor(lo.x() - margin));
   const int y0 = static_cast<int>(std::floor(lo.y() - margin));
   const int w = static_cast<int>(std::ceil(hi.x() + margin)) - x0 + 1;
@@ -137,24 +130,23 @@ DenseRefineResult Detector::refineDense(const Entry& e, const Eigen::Matrix3d& H
   Eigen::Matrix3d T = Eigen::Matrix3d::Identity();  // undistorted px -> crop px
   T(0, 2) = -x0;
   T(1, 2) = -y0;
-  DenseRefineResult r =
-      refineHomographyDense(e.pyramid, crop, T * H, e.corners_und_px, opt_.dense);
+  DenseRefineResult r = refineHomographyDense(e.pyramid, crop, T * H, e.corners_und_px, opt);
   r.H = T.inverse() * r.H;
   return r;
 }
 
-PoseResult Detector::estimatePose(int object, const MatchCandidate& match, const Features& scene,
-                                  const Intrinsics& camera, PoseMethod method) const {
-  const Entry& e = objects_.at(object);
+PoseResult estimatePose(const RegisteredObject& e, const DetectorOptions& opt,
+                        const MatchCandidate& match, const Features& scene,
+                        const Intrinsics& camera, PoseMethod method) {
   if (!e.model.target) return {};
   const PlanarTarget& target = *e.model.target;
   if (method == PoseMethod::kPaper)
-    return estimatePosePaper(match.H, target, camera.K(), opt_.pose_options);
-  if (opt_.dense.enabled && !e.pyramid.empty() && !scene.image.empty()) {
-    const DenseRefineResult dr = refineDense(e, match.H, scene.image, camera);
+    return estimatePosePaper(match.H, target, camera.K(), opt.pose_options);
+  if (opt.dense.enabled && !e.pyramid.empty() && !scene.image.empty()) {
+    const DenseRefineResult dr = refineDense(e, match.H, scene.image, camera, opt.dense);
     if (dr.ok) {
       // Pose from a grid of pattern points mapped by the refined H.
-      const int n = opt_.dense.pose_grid;
+      const int n = opt.dense.pose_grid;
       std::vector<Eigen::Vector3d> X;
       std::vector<Eigen::Vector2d> y;
       const auto& c = e.corners_und_px;
@@ -168,7 +160,7 @@ PoseResult Detector::estimatePose(int object, const MatchCandidate& match, const
           X.push_back(*Xo);
           y.push_back(applyHomography(dr.H, r));
         }
-      const PoseResult p = estimatePoseRefined(X, y, target, camera.K(), opt_.pose_options);
+      const PoseResult p = estimatePoseRefined(X, y, target, camera.K(), opt.pose_options);
       if (p.ok) return p;
     }
   }
@@ -177,7 +169,7 @@ PoseResult Detector::estimatePose(int object, const MatchCandidate& match, const
   std::vector<double> sigma;
   X.reserve(match.inliers.size());
   y.reserve(match.inliers.size());
-  const double k = opt_.pose_options.keypoint_sigma_per_size;
+  const double k = opt.pose_options.keypoint_sigma_per_size;
   for (const auto& c : match.inliers) {
     const cv::Point2f& pr = e.index.features.keypoints[c.ref].pt;
     const auto Xo = target.backProject(Eigen::Vector2d(pr.x, pr.y));
@@ -187,41 +179,264 @@ PoseResult Detector::estimatePose(int object, const MatchCandidate& match, const
     y.emplace_back(ks.pt.x, ks.pt.y);
     if (k > 0) sigma.push_back(std::max(0.05, k * ks.size));
   }
-  return estimatePoseRefined(X, y, target, camera.K(), opt_.pose_options, sigma);
+  return estimatePoseRefined(X, y, target, camera.K(), opt.pose_options, sigma);
 }
 
-DetectionResult Detector::detect(const cv::Mat& image, const Intrinsics& camera) const {
+// What one object searches in a frame.
+struct Search {
+  bool searched = true;  // false: only_priors and no prior
+  cv::Rect roi;          // clipped to the image; empty: nothing of the region is in the image
+  ExtractRegion region;  // what the extraction is asked for (roi empty = whole image)
+  bool sameExtraction(const Search& o) const {
+    return region.roi == o.region.roi && region.min_size_px == o.region.min_size_px &&
+           region.max_size_px == o.region.max_size_px;
+  }
+};
+
+// The region a predicted pose gives: the projected pattern's bounding box (real image px) grown
+// by roi_margin, and the reference keypoint sizes scaled by the predicted homography's local
+// scale, widened by scale_margin. False when the pattern is not in front of the camera.
+bool predictRegion(const RegisteredObject& e, const ObjectPrior& p, const Intrinsics& cam,
+                   cv::Rect* roi, double* min_size, double* max_size) {
+  const PlanarTarget& t = *e.model.target;
+  std::vector<Eigen::Vector2d> ref(4), und(4);
+  Eigen::Vector2d lo(1e300, 1e300), hi(-1e300, -1e300);
+  for (int i = 0; i < 4; ++i) {
+    const Eigen::Vector3d Xc = *p.cMo * t.corners_o[i];
+    if (!(Xc.z() > 1e-6)) return false;
+    ref[i] = t.corners_ref_px[i];
+    und[i] = projectPinhole(cam.K(), Xc);
+    const Eigen::Vector2d px = cam.project(Xc);
+    lo = lo.cwiseMin(px);
+    hi = hi.cwiseMax(px);
+  }
+  const Eigen::Matrix3d H = fitHomographyLeastSquares(ref, und);
+  if (!H.allFinite() || !lo.allFinite() || !hi.allFinite()) return false;
+  double smin = 1e300, smax = 0;
+  for (const cv::KeyPoint& k : e.index.features.keypoints) {
+    const Eigen::Vector3d y = H * Eigen::Vector3d(k.pt.x, k.pt.y, 1);
+    const double u = y.x() / y.z(), v = y.y() / y.z();
+    Eigen::Matrix2d J;  // d(scene px) / d(reference px)
+    J << H(0, 0) - u * H(2, 0), H(0, 1) - u * H(2, 1), H(1, 0) - v * H(2, 0), H(1, 1) - v * H(2, 1);
+    const double s = k.size * std::sqrt(std::abs(J.determinant())) / std::abs(y.z());
+    if (!std::isfinite(s)) continue;
+    smin = std::min(smin, s);
+    smax = std::max(smax, s);
+  }
+  if (smax <= 0) return false;
+  *min_size = smin / p.scale_margin;
+  *max_size = smax * p.scale_margin;
+  // Grown by the margin, clamped just outside the image (the caller clips it to the image).
+  const double m = p.roi_margin * std::max(hi.x() - lo.x(), hi.y() - lo.y());
+  auto clampX = [&](double x) { return static_cast<int>(std::clamp(x, -1.0, cam.width + 1.0)); };
+  auto clampY = [&](double y) { return static_cast<int>(std::clamp(y, -1.0, cam.height + 1.0)); };
+  *roi = cv::Rect(cv::Point(clampX(std::floor(lo.x() - m)), clampY(std::floor(lo.y() - m))),
+                  cv::Point(clampX(std::ceil(hi.x() + m) + 1), clampY(std::ceil(hi.y() + m) + 1)));
+  return true;
+}
+
+Search searchFor(const RegisteredObject& e, const ObjectPrior* prior, const DetectionQuery& q,
+                 const Intrinsics& camera) {
+  Search s;
+  if (!prior && q.only_priors) {
+    s.searched = false;
+    return s;
+  }
+  const cv::Rect full(0, 0, camera.width, camera.height);
+  cv::Rect roi = full;
+  if (prior) {
+    cv::Rect predicted;
+    const bool has_prediction = prior->cMo && e.model.target &&
+                                predictRegion(e, *prior, camera, &predicted, &s.region.min_size_px,
+                                              &s.region.max_size_px);
+    if (prior->roi.area() > 0) {
+      roi = prior->roi;
+    } else if (has_prediction) {
+      roi = predicted;
+    }
+  }
+  if (q.roi) roi &= *q.roi;
+  s.roi = roi & full;
+  s.region.roi = s.roi == full ? cv::Rect() : s.roi;
+  return s;
+}
+
+// Why nothing was accepted, from what the matcher reports.
+MissReason matcherMiss(const MatchResult& m, int scene_features, int reference_features) {
+  if (scene_features < 4 || reference_features < 4) return MissReason::kTooFewFeatures;
+  if (m.global_matches == 0) return MissReason::kNoGlobalMatches;
+  if (m.rejected.narrow_inlier_spread > 0) return MissReason::kNarrowInlierSpread;
+  if (m.rejected.implausible_homography > 0) return MissReason::kImplausibleHomography;
+  if (m.rejected.too_few_inliers > 0) return MissReason::kTooFewInliers;
+  return MissReason::kTooFewLocalMatches;
+}
+
+}  // namespace
+
+const char* missReasonName(MissReason r) {
+  switch (r) {
+    case MissReason::kNone: return "none";
+    case MissReason::kNotSearched: return "not searched";
+    case MissReason::kTooFewFeatures: return "too few features";
+    case MissReason::kNoGlobalMatches: return "no global matches";
+    case MissReason::kTooFewLocalMatches: return "too few local matches";
+    case MissReason::kTooFewInliers: return "too few inliers";
+    case MissReason::kImplausibleHomography: return "implausible homography";
+    case MissReason::kNarrowInlierSpread: return "narrow inlier spread";
+    case MissReason::kPoseFailed: return "pose failed";
+    case MissReason::kSanity: return "sanity check";
+  }
+  return "?";
+}
+
+void DetectorOptions::check() const {
+  sift.check();
+  match.check();
+  pose_options.check();
+  dense.check();
+  sanity.check();
+}
+
+std::optional<Detection> DetectionResult::find(int object, int instance) const {
+  for (const auto& d : detections)
+    if (d.found && d.object == object && d.instance == instance) return d;
+  return std::nullopt;
+}
+
+Detector::Detector(DetectorOptions opt) : opt_(std::move(opt)) { opt_.check(); }
+Detector::~Detector() = default;
+Detector::Detector(const Detector&) = default;
+Detector::Detector(Detector&&) noexcept = default;
+Detector& Detector::operator=(const Detector&) = default;
+Detector& Detector::operator=(Detector&&) noexcept = default;
+
+int Detector::objectCount() const { return static_cast<int>(objects_.size()); }
+const ObjectModel& Detector::object(int id) const { return objects_.at(id).model; }
+
+int Detector::addObject(const ObjectModel& object) {
+  if (object.reference.empty() || object.reference.type() != CV_8UC1)
+    throw ConfigError(object.source.empty() ? object.name : object.source, "reference_image",
+                      "expected a non-empty 8-bit grayscale image");
+  RegisteredObject e;
+  e.model = object;
+  Features f = extractSift(object.reference, opt_.sift);
+  std::vector<Eigen::Vector2d> polygon = object.pattern_polygon_px;
+  if (object.camera) {
+    undistortKeypoints(&f.keypoints, *object.camera);
+    for (auto& p : polygon) p = object.camera->undistortPixel(p);
+  }
+  for (int i = 0; i < 4; ++i)
+    e.corners_und_px[i] =
+        object.camera ? object.camera->undistortPixel(object.corners_px[i]) : object.corners_px[i];
+  e.index = buildReferenceIndex(std::move(f), polygon, opt_.match);
+  // Dense refinement needs an undistorted reference whose pattern region is its bounding box.
+  if (object.target && (!object.camera || !object.camera->hasDistortion())) {
+    double minx = 1e300, miny = 1e300, maxx = -1e300, maxy = -1e300;
+    for (const Eigen::Vector2d& p : polygon) {
+      minx = std::min(minx, p.x()), maxx = std::max(maxx, p.x());
+      miny = std::min(miny, p.y()), maxy = std::max(maxy, p.y());
+    }
+    if (std::abs(signedArea(polygon)) >= 0.98 * (maxx - minx) * (maxy - miny))
+      e.pyramid = buildReferencePyramid(object.reference);
+  }
+  objects_.push_back(std::move(e));
+  return static_cast<int>(objects_.size()) - 1;
+}
+
+DetectionResult Detector::detect(const cv::Mat& image, const Intrinsics& camera,
+                                 const FrameStamp& frame, const DetectionQuery& query) const {
   const auto t0 = Clock::now();
   DetectionResult res;
-  res.error = validateImage(image, camera);
-  if (!res.error.empty()) {
+  auto fail = [&](const std::string& error) {
+    res = DetectionResult{};
     res.ok = false;
-    return res;
+    res.error = error;
+  };
+  try {
+    std::string problem = validateImage(image, camera);
+    if (problem.empty()) problem = validateQuery(query, objectCount());
+    if (!problem.empty()) {
+      fail(problem);
+    } else {
+      cv::Mat gray = image;
+      if (image.channels() == 3) cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
+      if (image.channels() == 4) cv::cvtColor(image, gray, cv::COLOR_BGRA2GRAY);
+      res = detectGray(gray, camera, query);
+    }
+  } catch (const cv::Exception& e) {
+    fail("detection failed: " + oneLine(e.what()));
+  } catch (const std::bad_alloc&) {
+    fail("detection failed: out of memory");
+  } catch (const std::exception& e) {
+    fail("detection failed: " + oneLine(e.what()));
+  } catch (...) {
+    fail("detection failed: unknown exception");
   }
-  cv::Mat gray = image;
-  if (image.channels() == 3) cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
-  if (image.channels() == 4) cv::cvtColor(image, gray, cv::COLOR_BGRA2GRAY);
-  res = detectGray(gray, camera);
+  res.frame = frame;
   res.time_ms.total = msSince(t0);
   return res;
 }
 
-DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& camera) const {
+DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& camera,
+                                     const DetectionQuery& query) const {
+  const DetectorOptions& opt = opt_;
   DetectionResult res;
+  std::vector<const ObjectPrior*> prior_of(objectCount(), nullptr);
+  for (const ObjectPrior& p : query.priors) prior_of[p.object] = &p;
+
+  // One extraction per distinct region, in object order.
   auto t = Clock::now();
-  const Features scene = extract(gray, camera);
-  const GridIndex grid(scene.keypoints, scene.image_size);
-  res.time_ms.extract = msSince(t);
-  res.scene_features = scene.size();
-
+  struct Extraction {
+    Search search;
+    Features features;
+    GridIndex grid;
+  };
+  std::vector<Search> searches;
+  std::vector<Extraction> extractions;
+  std::vector<int> extraction_of;
   for (int id = 0; id < objectCount(); ++id) {
-    const Entry& e = objects_[id];
-    t = Clock::now();
-    const MatchResult m = matchObject(e.index, scene, grid, opt_.match);
-    res.time_ms.match += msSince(t);
+    searches.push_back(searchFor(objects_[id], prior_of[id], query, camera));
+    const Search& s = searches.back();
+    int x = -1;
+    if (s.searched && s.roi.area() > 0) {
+      for (size_t k = 0; k < extractions.size() && x < 0; ++k)
+        if (extractions[k].search.sameExtraction(s)) x = static_cast<int>(k);
+      if (x < 0) {
+        Features f = extractFeatures(gray, camera, opt.sift, s.region);
+        GridIndex grid(f.keypoints, f.image_size);
+        res.scene_features += f.size();
+        extractions.push_back({s, std::move(f), std::move(grid)});
+        x = static_cast<int>(extractions.size()) - 1;
+      }
+    }
+    extraction_of.push_back(x);
+  }
+  res.time_ms.extract = msSince(t);
+
+  const Features no_features;
+  for (int id = 0; id < objectCount(); ++id) {
+    const RegisteredObject& e = objects_[id];
+    const Search& s = searches[id];
+    const Extraction* x = extraction_of[id] >= 0 ? &extractions[extraction_of[id]] : nullptr;
+    const Features& scene = x ? x->features : no_features;
+    ObjectStats st;
+    st.object = id;
+    st.roi = s.roi;
+    st.min_keypoint_px = s.region.min_size_px;
+    st.max_keypoint_px = s.region.max_size_px;
+    st.scene_features = scene.size();
 
     t = Clock::now();
-    int found = 0;
+    MatchResult m;
+    if (x) m = matchObjectUnchecked(e.index, scene, x->grid, opt.match);
+    res.time_ms.match += msSince(t);
+    st.global_matches = m.global_matches;
+    st.hypotheses_evaluated = m.hypotheses_evaluated;
+    st.candidates = static_cast<int>(m.instances.size());
+    st.rejected = m.rejected;
+
+    t = Clock::now();
+    int found = 0, pose_failures = 0, sanity_failures = 0;
     SanityStatus rejected = SanityStatus::kOk;
     for (const MatchCandidate& cand : m.instances) {
       Detection d;
@@ -230,9 +445,10 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
       d.inliers = static_cast<int>(cand.inliers.size());
       d.score = cand.score;
       if (e.model.target) {
-        const PoseResult p = estimatePose(id, cand, scene, camera, opt_.pose);
+        const PoseResult p = estimatePose(e, opt, cand, scene, camera, opt.pose);
         if (!p.ok) {
           rejected = SanityStatus::kNotFinite;
+          ++pose_failures;
           continue;
         }
         d.cMo = p.cMo;
@@ -242,9 +458,10 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
         for (int i = 0; i < 4; ++i)
           d.corners[i] = distortPixel(camera, applyHomography(cand.H, e.corners_und_px[i]));
       }
-      d.sanity = checkDetection(d.corners, d.cMo, camera.width, camera.height, opt_.sanity);
+      d.sanity = checkDetection(d.corners, d.cMo, camera.width, camera.height, opt.sanity);
       if (d.sanity != SanityStatus::kOk) {
         if (found == 0) rejected = d.sanity;
+        if (sanity_failures++ == 0) st.sanity = d.sanity;
         continue;
       }
       d.found = true;
@@ -255,39 +472,66 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
       res.detections.emplace_back();
       res.detections.back().object = id;
       res.detections.back().sanity = rejected;
+      if (!s.searched) st.miss = MissReason::kNotSearched;
+      else if (sanity_failures > 0) st.miss = MissReason::kSanity;
+      else if (pose_failures > 0) st.miss = MissReason::kPoseFailed;
+      else st.miss = matcherMiss(m, scene.size(), e.index.features.size());
     }
+    res.stats.push_back(st);
     res.time_ms.pose += msSince(t);
   }
   return res;
 }
 
 StereoDetectionResult Detector::detectStereo(const cv::Mat& left, const cv::Mat& right,
-                                             const StereoRig& rig) const {
+                                             const StereoRig& rig, const FrameStamp& frame) const {
   StereoDetectionResult out;
-  out.left = detect(left, rig.left);
-  out.right = detect(right, rig.right);
+  out.frame = frame;
+  out.left = detect(left, rig.left, frame);
+  out.right = detect(right, rig.right, frame);
   if (!out.left.ok || !out.right.ok) {
     out.ok = false;
     out.error = !out.left.ok ? "left: " + out.left.error : "right: " + out.right.error;
     return out;
   }
-  for (int id = 0; id < objectCount(); ++id) {
-    StereoDetection s;
-    s.object = id;
-    s.left.object = s.right.object = id;
-    if (const Detection* d = out.left.find(id)) s.left = *d;
-    if (const Detection* d = out.right.find(id)) s.right = *d;
-    s.fused = fuseStereo(s.left.found ? s.left.cMo : std::nullopt,
-                         s.right.found ? s.right.cMo : std::nullopt, rig);
-    // 2D-only objects: report the eyes that saw them even without a pose.
-    if (!objects_[id].model.target && s.fused.eyes == EyesUsed::kNone) {
-      if (s.left.found && s.right.found) s.fused.eyes = EyesUsed::kBoth;
-      else if (s.left.found) s.fused.eyes = EyesUsed::kLeft;
-      else if (s.right.found) s.fused.eyes = EyesUsed::kRight;
+  try {
+    for (int id = 0; id < objectCount(); ++id) {
+      StereoDetection s;
+      s.object = id;
+      s.left.object = s.right.object = id;
+      if (const auto d = out.left.find(id)) s.left = *d;
+      if (const auto d = out.right.find(id)) s.right = *d;
+      s.fused = fuseStereo(s.left.found ? s.left.cMo : std::nullopt,
+                           s.right.found ? s.right.cMo : std::nullopt, rig);
+      // 2D-only objects: report the eyes that saw them even without a pose.
+      if (!objects_[id].model.target && s.fused.eyes == EyesUsed::kNone) {
+        if (s.left.found && s.right.found) s.fused.eyes = EyesUsed::kBoth;
+        else if (s.left.found) s.fused.eyes = EyesUsed::kLeft;
+        else if (s.right.found) s.fused.eyes = EyesUsed::kRight;
+      }
+      out.objects.push_back(s);
     }
-    out.objects.push_back(s);
+  } catch (const std::exception& e) {  // out of memory
+    out.objects.clear();
+    out.ok = false;
+    out.error = "fusion failed: " + oneLine(e.what());
   }
   return out;
+}
+
+Features DetectorInternals::extract(const Detector& det, const cv::Mat& gray,
+                                    const Intrinsics& camera, const ExtractRegion& region) {
+  return extractFeatures(gray, camera, det.opt_.sift, region);
+}
+
+const ReferenceIndex& DetectorInternals::referenceIndex(const Detector& det, int object) {
+  return det.objects_.at(object).index;
+}
+
+PoseResult DetectorInternals::estimatePose(const Detector& det, int object,
+                                           const MatchCandidate& match, const Features& scene,
+                                           const Intrinsics& camera, PoseMethod method) {
+  return detector::estimatePose(det.objects_.at(object), det.opt_, match, scene, camera, method);
 }
 
 }  // namespace refgrasp::detector

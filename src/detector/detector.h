@@ -1,19 +1,23 @@
 #pragma once
 // The detector facade: the small stable API a tracker, a replay tool or a DDS node calls.
 //
-//   Detector det(DetectorOptions{});
+//   Detector det(loadDetectorOptions("config/detector.yaml"));   // detector_config.h, or {}
 //   int id = det.addObject(loadObjectDefinition("config/objects/poster.yaml"));
-//   DetectionResult r = det.detect(gray, camera);   // one SIFT extraction for all objects
+//   DetectionResult r = det.detect(gray, camera, {t_s, index});  // one SIFT extraction for all objects
+//   if (const std::optional<Detection> d = r.find(id)) use(d->cMo);
 //
 // Errors: Detector's constructor and addObject() throw (start-up: std::invalid_argument for bad
-// options, ConfigError for a bad object). detect()/detectStereo() never throw for bad frames: they
-// return ok = false and a one-line `error` (empty image, unsupported pixel type, image size
-// different from the camera's). Colour frames are converted to gray.
+// options, ConfigError for a bad object); options are checked there, once. detect() and
+// detectStereo() never throw: a frame they cannot use (empty image, unsupported pixel type, image
+// size different from the camera's, invalid camera, bad query) and any failure inside (OpenCV,
+// out of memory) give ok = false and a one-line `error`. Colour frames are converted to gray.
 //
 // Distortion: keypoints are undistorted (reference with the reference camera, scene with the
 // scene camera) before matching, so Detection::H maps UNDISTORTED reference px to UNDISTORTED
 // scene px (plain reference px -> image px when neither camera has distortion). Detection::corners
-// are in the real (distorted) image.
+// and every cv::Rect here are in the real (distorted) image.
+//
+// Building blocks for benchmarks and method comparisons: detector/detector_internal.h.
 #include <Eigen/Core>
 #include <array>
 #include <opencv2/core.hpp>
@@ -23,16 +27,20 @@
 
 #include "core/camera.h"
 #include "core/pose.h"
-#include "detector/dense.h"
-#include "detector/features.h"
-#include "detector/matching.h"
-#include "detector/object.h"
-#include "detector/pose.h"
-#include "detector/sanity.h"
-#include "detector/stereo.h"
+#include "core/types.h"
+#include "detector/dense.h"     // DenseRefineOptions
+#include "detector/features.h"  // SiftOptions
+#include "detector/matching.h"  // MatchOptions, MatchRejects
+#include "detector/object.h"    // ObjectModel
+#include "detector/pose.h"      // PoseMethod, PoseOptions
+#include "detector/sanity.h"    // SanityOptions, SanityStatus
+#include "detector/stereo.h"    // FusedPose
 
 namespace refgrasp::detector {
 
+struct RegisteredObject;  // detector.cpp: model, reference index, pyramid
+
+/// Every field can be set in a YAML file (config/detector.yaml, loadDetectorOptions).
 struct DetectorOptions {
   SiftOptions sift;
   MatchOptions match;
@@ -41,10 +49,33 @@ struct DetectorOptions {
   PoseOptions pose_options;
   /// Refined method only: photometric (ECC) refinement of the matched H, pose from a grid mapped
   /// by it. Used when the reference camera is distortion-free and the pattern region is a
-  /// rectangle (a distorted scene is resampled around the pattern only); falls back to the feature correspondences when ECC fails or moves a corner too far.
+  /// rectangle (a distorted scene is resampled around the pattern only); falls back to the
+  /// feature correspondences when ECC fails or moves a corner too far.
   DenseRefineOptions dense;
   SanityOptions sanity;
+  /// Throws std::invalid_argument "<Options.field>: <problem>".
   void check() const;
+};
+
+/// Where to look for one object, e.g. the tracker's prediction after it lost the target.
+struct ObjectPrior {
+  int object = -1;  ///< id returned by addObject()
+  /// Predicted cMo (object frame in the scene camera frame, metres, radians). For objects with a
+  /// reference pose it gives the region (the projected pattern's bounding box grown by
+  /// roi_margin) and the keypoint size range (the reference keypoint sizes times the predicted
+  /// local scale, divided and multiplied by scale_margin). Ignored for 2D-only objects.
+  std::optional<Pose> cMo;
+  cv::Rect roi;               ///< image px; non-empty: search here instead of the projection
+  double roi_margin = 0.25;   ///< added on each side, fraction of the projection's larger side
+  double scale_margin = 2.0;  ///< >= 1, see cMo
+};
+
+/// What to search in one frame. Default: every object in the whole image, one shared extraction.
+/// Each distinct region is extracted once (SIFT on an aligned crop: cheaper than the whole image).
+struct DetectionQuery {
+  std::optional<cv::Rect> roi;      ///< image px: restricts the search of every object
+  std::vector<ObjectPrior> priors;  ///< at most one per object
+  bool only_priors = false;         ///< true: objects without a prior are not searched
 };
 
 struct Detection {
@@ -62,6 +93,36 @@ struct Detection {
   SanityStatus sanity = SanityStatus::kOk;  ///< why the best candidate was rejected, if it was
 };
 
+/// Why an object has no accepted instance in a frame: the furthest stage a hypothesis reached.
+enum class MissReason {
+  kNone,                   ///< found
+  kNotSearched,            ///< DetectionQuery::only_priors and no prior for it
+  kTooFewFeatures,         ///< fewer than 4 scene features in its region
+  kNoGlobalMatches,        ///< no scene feature passed the global ratio test
+  kTooFewLocalMatches,     ///< paper matcher: no hypothesis found enough consistent matches
+  kTooFewInliers,          ///< the best robust homography had < min_inliers inliers
+  kImplausibleHomography,  ///< flipped, non-convex, near-singular or tiny projected pattern
+  kNarrowInlierSpread,     ///< inliers covered too little of the reference (a shared logo)
+  kPoseFailed,             ///< no candidate's pose could be estimated
+  kSanity,                 ///< every candidate failed the sanity check (ObjectStats::sanity)
+};
+const char* missReasonName(MissReason r);
+
+/// Per object and frame: what the matcher saw and, when nothing was accepted, why.
+struct ObjectStats {
+  int object = -1;
+  cv::Rect roi;                  ///< image px searched (the whole image unless restricted)
+  double min_keypoint_px = 0;    ///< keypoint size range searched (diameter, image px)
+  double max_keypoint_px = 1e30;
+  int scene_features = 0;        ///< scene features the matcher saw (those of its region)
+  int global_matches = 0;        ///< of them, passing the global ratio test
+  int hypotheses_evaluated = 0;
+  int candidates = 0;            ///< homographies the matcher accepted (before pose and sanity)
+  MatchRejects rejected;         ///< hypotheses / fits that ended at each matcher stage
+  MissReason miss = MissReason::kNone;
+  SanityStatus sanity = SanityStatus::kOk;  ///< with kSanity: the best candidate's status
+};
+
 struct DetectionTimings {
   double extract = 0, match = 0, pose = 0, total = 0;  ///< milliseconds
 };
@@ -69,12 +130,15 @@ struct DetectionTimings {
 struct DetectionResult {
   bool ok = true;
   std::string error;  ///< one line when !ok
+  FrameStamp frame;   ///< as given to detect()
   /// Per object in id order: its found instances (best first), or one entry with found = false.
+  /// Empty when !ok, like stats.
   std::vector<Detection> detections;
+  std::vector<ObjectStats> stats;  ///< one per object, id order
   DetectionTimings time_ms;
-  int scene_features = 0;
-  /// The given instance of the object if found, else nullptr.
-  const Detection* find(int object, int instance = 0) const;
+  int scene_features = 0;  ///< features extracted in this frame (all regions)
+  /// A copy of the given instance of the object when it was found (safe on a temporary result).
+  std::optional<Detection> find(int object, int instance = 0) const;
 };
 
 struct StereoDetection {
@@ -86,6 +150,7 @@ struct StereoDetection {
 struct StereoDetectionResult {
   bool ok = true;
   std::string error;
+  FrameStamp frame;                      ///< as given to detectStereo(), also in left and right
   std::vector<StereoDetection> objects;  ///< one per object, id order
   DetectionResult left, right;
 };
@@ -94,46 +159,37 @@ class Detector {
  public:
   /// Throws std::invalid_argument when opt.check() fails.
   explicit Detector(DetectorOptions opt = {});
+  ~Detector();
+  Detector(const Detector&);
+  Detector(Detector&&) noexcept;
+  Detector& operator=(const Detector&);
+  Detector& operator=(Detector&&) noexcept;
 
   /// Computes the reference features once. Returns the object id (0, 1, ...).
   int addObject(const ObjectModel& object);
-  int objectCount() const { return static_cast<int>(objects_.size()); }
-  const ObjectModel& object(int id) const { return objects_.at(id).model; }
-  const ReferenceIndex& referenceIndex(int id) const { return objects_.at(id).index; }
+  int objectCount() const;
+  const ObjectModel& object(int id) const;
   const DetectorOptions& options() const { return opt_; }
 
   /// \param image 8-bit gray (colour is converted), size camera.width x camera.height
   /// \param camera intrinsics of this image (distortion honoured)
-  DetectionResult detect(const cv::Mat& image, const Intrinsics& camera) const;
+  /// \param frame capture stamp and index of the image, returned in the result
+  /// \param query where to look (default: every object in the whole image)
+  DetectionResult detect(const cv::Mat& image, const Intrinsics& camera,
+                         const FrameStamp& frame = {}, const DetectionQuery& query = {}) const;
 
   /// Detects in each eye independently (each with its own intrinsics) and fuses the best
   /// instance of every object (fuseStereo). Poses in the LEFT camera frame.
   StereoDetectionResult detectStereo(const cv::Mat& left, const cv::Mat& right,
-                                     const StereoRig& rig) const;
-
-  // Building blocks (used by detect(); public for benchmarks and method comparisons).
-  /// SIFT on the (validated) image with keypoints undistorted by `camera`.
-  Features extract(const cv::Mat& gray, const Intrinsics& camera) const;
-  /// Pose of a match candidate with the chosen method; empty result for 2D-only objects.
-  PoseResult estimatePose(int object, const MatchCandidate& match, const Features& scene,
-                          const Intrinsics& camera, PoseMethod method) const;
-  /// Empty string when the image can be used with this camera, else the problem.
-  static std::string validateImage(const cv::Mat& image, const Intrinsics& camera);
+                                     const StereoRig& rig, const FrameStamp& frame = {}) const;
 
  private:
-  struct Entry {
-    ObjectModel model;
-    ReferenceIndex index;
-    std::array<Eigen::Vector2d, 4> corners_und_px;  ///< pattern corners, undistorted ref px
-    std::vector<cv::Mat> pyramid;  ///< reference pyramid for dense refinement (empty: not usable)
-  };
-  DetectionResult detectGray(const cv::Mat& gray, const Intrinsics& camera) const;
-  /// Dense refinement of H (undistorted reference px -> undistorted scene px) on `image`.
-  DenseRefineResult refineDense(const Entry& e, const Eigen::Matrix3d& H, const cv::Mat& image,
-                                const Intrinsics& camera) const;
-
+  friend struct DetectorInternals;  // detector/detector_internal.h
+  /// detect() on a validated gray image; may throw what OpenCV throws.
+  DetectionResult detectGray(const cv::Mat& gray, const Intrinsics& camera,
+                             const DetectionQuery& query) const;
   DetectorOptions opt_;
-  std::vector<Entry> objects_;
+  std::vector<RegisteredObject> objects_;
 };
 
 }  // namespace refgrasp::detector

@@ -28,6 +28,10 @@ Features extractWhole(const cv::Mat& image, const SiftOptions& opt);
 
 Features extractSift(const cv::Mat& image, const SiftOptions& opt, const ExtractRegion& region) {
   opt.check();
+  return extractSiftUnchecked(image, opt, region);
+}
+
+Features extractSiftUnchecked(const cv::Mat& image, const SiftOptions& opt, const ExtractRegion& region) {
   refgrasp::check(!image.empty(), "extractSift", "empty image");
   refgrasp::check(std::isfinite(region.min_size_px) && !std::isnan(region.max_size_px) &&
                       region.min_size_px <= region.max_size_px,

@@ -50,6 +50,9 @@ struct ExtractRegion {
 /// Throws std::invalid_argument on an empty image, opt.check() failure or a non-finite / inverted
 /// size range. A ROI is clipped to the image; one outside it gives no features.
 Features extractSift(const cv::Mat& gray, const SiftOptions& opt, const ExtractRegion& region = {});
+/// extractSift without opt.check(), for callers that checked opt once (the Detector, per frame).
+Features extractSiftUnchecked(const cv::Mat& gray, const SiftOptions& opt,
+                              const ExtractRegion& region = {});
 
 /// Uniform grid of keypoint indices for radius queries. Keypoints outside the image are clamped
 /// into the border cells (still found by an exact distance test).

@@ -7,6 +7,7 @@
 #include <random>
 
 #include "core/error.h"
+#include "core/geometry.h"
 
 namespace refgrasp::detector {
 namespace {
@@ -14,23 +15,23 @@ namespace {
 using Vec2 = Eigen::Vector2d;
 const double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-/// Isotropic (Hartley) normalisation: centroid to 0, mean distance sqrt(2).
-Eigen::Matrix3d normaliser(const std::vector<Vec2>& p, const std::vector<int>& idx) {
-  Vec2 c = Vec2::Zero();
-  for (int i : idx) c += p[i];
-  c /= static_cast<double>(idx.size());
-  double d = 0;
-  for (int i : idx) d += (p[i] - c).norm();
-  d /= static_cast<double>(idx.size());
-  const double s = d > 1e-12 ? std::sqrt(2.0) / d : 1.0;
-  Eigen::Matrix3d T;
-  T << s, 0, -s * c.x(), 0, s, -s * c.y(), 0, 0, 1;
-  return T;
-}
-
 Vec2 apply(const Eigen::Matrix3d& T, const Vec2& x) {
   const Eigen::Vector3d y = T * x.homogeneous();
   return y.hnormalized();
+}
+
+/// Both point sets in Hartley-normalised coordinates: a = Ta from, b = Tb to.
+struct Normalized {
+  Eigen::Matrix3d Ta, Tb;
+  std::vector<Vec2> a, b;
+};
+Normalized normalize(const std::vector<Vec2>& from, const std::vector<Vec2>& to) {
+  Normalized n{hartleyNormalization(from), hartleyNormalization(to), {}, {}};
+  n.a.reserve(from.size());
+  n.b.reserve(to.size());
+  for (const Vec2& x : from) n.a.push_back(apply(n.Ta, x));
+  for (const Vec2& x : to) n.b.push_back(apply(n.Tb, x));
+  return n;
 }
 
 /// Twice the signed area of triangle abc.
@@ -106,17 +107,12 @@ Vec2 applyHomography(const Eigen::Matrix3d& H, const Vec2& x) { return apply(H, 
 Eigen::Matrix3d fitHomographyLeastSquares(const std::vector<Vec2>& from, const std::vector<Vec2>& to) {
   const int n = static_cast<int>(from.size());
   if (n < 4 || static_cast<int>(to.size()) != n) return Eigen::Matrix3d::Constant(kNaN);
-  std::vector<int> all(n);
-  for (int i = 0; i < n; ++i) {
+  for (int i = 0; i < n; ++i)
     if (!from[i].allFinite() || !to[i].allFinite()) return Eigen::Matrix3d::Constant(kNaN);
-    all[i] = i;
-  }
-  const Eigen::Matrix3d Ta = normaliser(from, all), Tb = normaliser(to, all);
-  std::vector<Vec2> a(n), b(n);
-  for (int i = 0; i < n; ++i) {
-    a[i] = apply(Ta, from[i]);
-    b[i] = apply(Tb, to[i]);
-  }
+  const Normalized nz = normalize(from, to);
+  const Eigen::Matrix3d &Ta = nz.Ta, &Tb = nz.Tb;
+  const std::vector<Vec2>& a = nz.a;
+  const std::vector<Vec2>& b = nz.b;
   Eigen::Matrix3d Hn = dlt(a, b);
   if (!Hn.allFinite()) return Hn;
 
@@ -176,20 +172,22 @@ Eigen::Matrix3d fitHomographyLeastSquares(const std::vector<Vec2>& from, const s
 HomographyResult estimateHomography(const std::vector<Vec2>& from, const std::vector<Vec2>& to,
                                     const HomographyOptions& opt) {
   opt.check();
+  return estimateHomographyUnchecked(from, to, opt);
+}
+
+HomographyResult estimateHomographyUnchecked(const std::vector<Vec2>& from,
+                                             const std::vector<Vec2>& to,
+                                             const HomographyOptions& opt) {
   HomographyResult res;
   const int n = static_cast<int>(from.size());
   if (n < 4 || static_cast<int>(to.size()) != n) return res;
   for (int i = 0; i < n; ++i)
     if (!from[i].allFinite() || !to[i].allFinite()) return res;
 
-  std::vector<int> all(n);
-  for (int i = 0; i < n; ++i) all[i] = i;
-  const Eigen::Matrix3d Ta = normaliser(from, all), Tb = normaliser(to, all);
-  std::vector<Vec2> a(n), b(n);
-  for (int i = 0; i < n; ++i) {
-    a[i] = apply(Ta, from[i]);
-    b[i] = apply(Tb, to[i]);
-  }
+  const Normalized nz = normalize(from, to);
+  const Eigen::Matrix3d &Ta = nz.Ta, &Tb = nz.Tb;
+  const std::vector<Vec2>& a = nz.a;
+  const std::vector<Vec2>& b = nz.b;
   const double thr2 = opt.ransac_reproj_px * opt.ransac_reproj_px;
   auto inliersOf = [&](const Eigen::Matrix3d& H, std::vector<int>* out) {
     out->clear();
@@ -272,7 +270,6 @@ bool homographyPlausible(const Eigen::Matrix3d& H, const std::vector<Vec2>& poly
                          double min_area_px2) {
   if (!H.allFinite() || polygon.size() < 3) return false;
   const int n = static_cast<int>(polygon.size());
-  double src_area = 0, dst_area = 0;
   std::vector<Vec2> q(n);
   double w0 = 0;
   for (int i = 0; i < n; ++i) {
@@ -282,11 +279,7 @@ bool homographyPlausible(const Eigen::Matrix3d& H, const std::vector<Vec2>& poly
     q[i] = y.hnormalized();
     if (!q[i].allFinite()) return false;
   }
-  for (int i = 0; i < n; ++i) {
-    const int j = (i + 1) % n;
-    src_area += polygon[i].x() * polygon[j].y() - polygon[j].x() * polygon[i].y();
-    dst_area += q[i].x() * q[j].y() - q[j].x() * q[i].y();
-  }
+  const double src_area = shoelace2(polygon.data(), n), dst_area = shoelace2(q.data(), n);
   if (src_area * dst_area <= 0) return false;  // flipped
   if (std::abs(dst_area) / 2 < min_area_px2) return false;
   // Convex image with the source's turning direction (the source polygon is convex).

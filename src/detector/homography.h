@@ -24,10 +24,15 @@ struct HomographyResult {
 
 /// Robust estimate (seeded RANSAC on 4-point samples) then least-squares refinement on the
 /// inliers. ok = false (never a throw) for fewer than 4 points, non-finite input, degenerate
-/// (collinear) configurations or a near-singular result.
+/// (collinear) configurations or a near-singular result. Throws std::invalid_argument only when
+/// opt.check() fails.
 HomographyResult estimateHomography(const std::vector<Eigen::Vector2d>& from,
                                     const std::vector<Eigen::Vector2d>& to,
                                     const HomographyOptions& opt);
+/// estimateHomography for callers that checked opt once (the matchers): never throws.
+HomographyResult estimateHomographyUnchecked(const std::vector<Eigen::Vector2d>& from,
+                                             const std::vector<Eigen::Vector2d>& to,
+                                             const HomographyOptions& opt);
 
 /// Normalised DLT followed by Gauss-Newton on the transfer error sum |x_to - H(x_from)|^2.
 /// Needs >= 4 points in general position; returns a non-finite matrix when it cannot fit.

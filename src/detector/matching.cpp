@@ -3,26 +3,18 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <climits>
-#include <map>
 #include <cmath>
 #include <cstdint>
-#include <numeric>
 #include <opencv2/imgproc.hpp>
 #include <unordered_map>
 
 #include "core/error.h"
 #include "detector/homography.h"
 
-#if defined(__x86_64__) || defined(__i386__)
-#include <immintrin.h>
-#define REFGRASP_HAVE_X86 1
-#endif
-
 namespace refgrasp::detector {
 namespace {
 
 using Vec2 = Eigen::Vector2d;
-constexpr int kDim = 128;
 constexpr double kPi = M_PI;
 
 // Local-search constants (the paper's "expected value" of the localisation error).
@@ -31,7 +23,6 @@ constexpr double kSimilarityErrorPerPx = 0.1;  // growth with distance: ~10% sca
 constexpr double kHomographyErrorPx = 2.0;     // after a homography fit
 constexpr double kHomographyErrorPerPx = 0.03; // extrapolating a fit from the seed's neighbourhood
 constexpr int kQuickNeighbours = 40;           // detectable reference neighbours tried in the quick test
-constexpr int kStoredNeighbours = 200;         // neighbour list length (small ones get skipped)
 constexpr int kQuickMinMatches = 4;            // quick test passes with this many local matches
 constexpr int kPass1MinMatches = 6;            // pass-1 matches needed to fit a homography
 constexpr double kOverlapFraction = 0.25;      // instances overlapping more than this conflict
@@ -44,220 +35,6 @@ double wrapPi(double a) {
   a = std::fmod(a + kPi, 2 * kPi);
   if (a < 0) a += 2 * kPi;
   return a - kPi;
-}
-
-int dist2(const int16_t* a, const int16_t* b) {
-  int s = 0;
-  for (int k = 0; k < kDim; ++k) {
-    const int d = a[k] - b[k];
-    s += d * d;
-  }
-  return s;
-}
-
-cv::Mat toS16(const cv::Mat& desc, std::vector<int>* norm2) {
-  cv::Mat out;
-  desc.convertTo(out, CV_16S);
-  norm2->resize(out.rows);
-  for (int i = 0; i < out.rows; ++i) {
-    const int16_t* r = out.ptr<int16_t>(i);
-    int s = 0;
-    for (int k = 0; k < kDim; ++k) s += r[k] * r[k];
-    (*norm2)[i] = s;
-  }
-  return out;
-}
-
-void knnRowsScalar(const cv::Mat& S, const std::vector<int>& sn2, const cv::Mat& R,
-                   const std::vector<int>& rn2, int s0, int s1, NearestTwo* out) {
-  for (int i = s0; i < s1; ++i) {
-    const int16_t* s = S.ptr<int16_t>(i);
-    NearestTwo nn;
-    for (int j = 0; j < R.rows; ++j) {
-      const int16_t* r = R.ptr<int16_t>(j);
-      int dot = 0;
-      for (int k = 0; k < kDim; ++k) dot += s[k] * r[k];
-      const int d = sn2[i] + rn2[j] - 2 * dot;
-      if (d < nn.d2) {
-        if (d < nn.d1) {
-          nn.d2 = nn.d1;
-          nn.second = nn.best;
-          nn.d1 = d;
-          nn.best = j;
-        } else {
-          nn.d2 = d;
-          nn.second = j;
-        }
-      }
-    }
-    out[i] = nn;
-  }
-}
-
-#ifdef REFGRASP_HAVE_X86
-// Exact integer dot products, four scene rows per pass over a reference row.
-__attribute__((target("avx2"))) void knnRowsAvx2(const cv::Mat& S, const std::vector<int>& sn2,
-                                                 const cv::Mat& R, const std::vector<int>& rn2,
-                                                 int s0, int s1, NearestTwo* out) {
-  int i = s0;
-  for (; i + 4 <= s1; i += 4) {
-    const __m256i* s[4];
-    for (int q = 0; q < 4; ++q) s[q] = reinterpret_cast<const __m256i*>(S.ptr<int16_t>(i + q));
-    NearestTwo nn[4];
-    for (int j = 0; j < R.rows; ++j) {
-      const __m256i* r = reinterpret_cast<const __m256i*>(R.ptr<int16_t>(j));
-      __m256i acc[4] = {_mm256_setzero_si256(), _mm256_setzero_si256(), _mm256_setzero_si256(),
-                        _mm256_setzero_si256()};
-      for (int k = 0; k < 8; ++k) {
-        const __m256i rv = _mm256_loadu_si256(r + k);
-        for (int q = 0; q < 4; ++q)
-          acc[q] = _mm256_add_epi32(acc[q], _mm256_madd_epi16(rv, _mm256_loadu_si256(s[q] + k)));
-      }
-      // Horizontal sums of the four accumulators.
-      const __m256i h01 = _mm256_hadd_epi32(acc[0], acc[1]);
-      const __m256i h23 = _mm256_hadd_epi32(acc[2], acc[3]);
-      const __m256i h = _mm256_hadd_epi32(h01, h23);
-      const __m128i sum = _mm_add_epi32(_mm256_castsi256_si128(h), _mm256_extracti128_si256(h, 1));
-      alignas(16) int dots[4];
-      _mm_store_si128(reinterpret_cast<__m128i*>(dots), sum);
-      for (int q = 0; q < 4; ++q) {
-        const int d = sn2[i + q] + rn2[j] - 2 * dots[q];
-        if (d < nn[q].d2) {
-          if (d < nn[q].d1) {
-            nn[q].d2 = nn[q].d1;
-            nn[q].second = nn[q].best;
-            nn[q].d1 = d;
-            nn[q].best = j;
-          } else {
-            nn[q].d2 = d;
-            nn[q].second = j;
-          }
-        }
-      }
-    }
-    for (int q = 0; q < 4; ++q) out[i + q] = nn[q];
-  }
-  if (i < s1) knnRowsScalar(S, sn2, R, rn2, i, s1, out);
-}
-#endif
-
-#ifdef REFGRASP_HAVE_X86
-// Eight scene rows per lane group; each reference row is one pass. Dot products with the 8-bit
-// VNNI instruction (u8 scene x s8 reference, exact int32 sums); the nearest/second-nearest
-// bookkeeping is vectorised across the eight scene rows.
-__attribute__((target("avx2,avx512f,avx512vl,avx512bw,avx512vnni"))) void knnBlocksVnni(
-    const cv::Mat& S8, const std::vector<int>& sn2, const ReferenceIndex& ref, int b0, int b1, NearestTwo* out) {
-  const int ns = S8.rows, nr = ref.descriptors_lo_s8.rows;
-  alignas(32) uint8_t pad[8][kDim];
-  for (int blk = b0; blk < b1; ++blk) {
-    const int i0 = blk * 8;
-    const uint8_t* rows[8];
-    for (int q = 0; q < 8; ++q) {
-      if (i0 + q < ns) {
-        rows[q] = S8.ptr<uint8_t>(i0 + q);
-      } else {
-        std::fill(pad[q], pad[q] + kDim, 0);
-        rows[q] = pad[q];
-      }
-    }
-    alignas(32) int n2[8];
-    for (int q = 0; q < 8; ++q) n2[q] = i0 + q < ns ? sn2[i0 + q] : 0;
-    const __m256i sn = _mm256_load_si256(reinterpret_cast<const __m256i*>(n2));
-    __m256i d1 = _mm256_set1_epi32(INT_MAX), d2 = _mm256_set1_epi32(INT_MAX);
-    __m256i best = _mm256_set1_epi32(-1), second = _mm256_set1_epi32(-1);
-    for (int j = 0; j < nr; ++j) {
-      const __m256i* lo = reinterpret_cast<const __m256i*>(ref.descriptors_lo_s8.ptr<int8_t>(j));
-      const __m256i l0 = _mm256_loadu_si256(lo), l1 = _mm256_loadu_si256(lo + 1),
-                    l2 = _mm256_loadu_si256(lo + 2), l3 = _mm256_loadu_si256(lo + 3);
-      __m256i acc[8];
-      for (int q = 0; q < 8; ++q) {
-        const __m256i* s = reinterpret_cast<const __m256i*>(rows[q]);
-        __m256i a = _mm256_dpbusd_epi32(_mm256_setzero_si256(), _mm256_loadu_si256(s), l0);
-        a = _mm256_dpbusd_epi32(a, _mm256_loadu_si256(s + 1), l1);
-        a = _mm256_dpbusd_epi32(a, _mm256_loadu_si256(s + 2), l2);
-        acc[q] = _mm256_dpbusd_epi32(a, _mm256_loadu_si256(s + 3), l3);
-      }
-      if (ref.has_hi[j]) {
-        const __m256i* hi = reinterpret_cast<const __m256i*>(ref.descriptors_hi_s8.ptr<int8_t>(j));
-        for (int q = 0; q < 8; ++q) {
-          const __m256i* s = reinterpret_cast<const __m256i*>(rows[q]);
-          __m256i a = _mm256_setzero_si256();
-          for (int k = 0; k < 4; ++k) a = _mm256_dpbusd_epi32(a, _mm256_loadu_si256(s + k), _mm256_loadu_si256(hi + k));
-          acc[q] = _mm256_add_epi32(acc[q], _mm256_slli_epi32(a, 7));
-        }
-      }
-      const __m256i h01 = _mm256_hadd_epi32(acc[0], acc[1]), h23 = _mm256_hadd_epi32(acc[2], acc[3]);
-      const __m256i h45 = _mm256_hadd_epi32(acc[4], acc[5]), h67 = _mm256_hadd_epi32(acc[6], acc[7]);
-      const __m256i h03 = _mm256_hadd_epi32(h01, h23), h47 = _mm256_hadd_epi32(h45, h67);
-      const __m256i dot = _mm256_add_epi32(_mm256_permute2x128_si256(h03, h47, 0x20),
-                                           _mm256_permute2x128_si256(h03, h47, 0x31));
-      const __m256i d = _mm256_sub_epi32(_mm256_add_epi32(sn, _mm256_set1_epi32(ref.descriptor_norm2[j])),
-                                         _mm256_slli_epi32(dot, 1));
-      const __m256i closer = _mm256_cmpgt_epi32(d1, d), closer2 = _mm256_cmpgt_epi32(d2, d);
-      const __m256i jv = _mm256_set1_epi32(j);
-      second = _mm256_blendv_epi8(_mm256_blendv_epi8(second, jv, closer2), best, closer);
-      d2 = _mm256_blendv_epi8(_mm256_min_epi32(d2, d), d1, closer);
-      best = _mm256_blendv_epi8(best, jv, closer);
-      d1 = _mm256_min_epi32(d1, d);
-    }
-    alignas(32) int vb[8], vs[8], v1[8], v2[8];
-    _mm256_store_si256(reinterpret_cast<__m256i*>(vb), best);
-    _mm256_store_si256(reinterpret_cast<__m256i*>(vs), second);
-    _mm256_store_si256(reinterpret_cast<__m256i*>(v1), d1);
-    _mm256_store_si256(reinterpret_cast<__m256i*>(v2), d2);
-    for (int q = 0; q < 8 && i0 + q < ns; ++q) out[i0 + q] = {vb[q], v1[q], v2[q], vs[q]};
-  }
-}
-#endif
-
-bool cpuHas(KnnKernel k) {
-#ifdef REFGRASP_HAVE_X86
-  static const bool avx2 = __builtin_cpu_supports("avx2");
-  static const bool vnni = __builtin_cpu_supports("avx512vnni") && __builtin_cpu_supports("avx512vl") &&
-                           __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx2");
-  if (k == KnnKernel::kAvx2) return avx2;
-  if (k == KnnKernel::kVnni) return vnni;
-#endif
-  return k == KnnKernel::kScalar || k == KnnKernel::kAuto;
-}
-
-std::vector<NearestTwo> globalKnn(const cv::Mat& S, const std::vector<int>& sn2, const ReferenceIndex& ref,
-                                  KnnKernel kernel = KnnKernel::kAuto) {
-  const cv::Mat& R = ref.descriptors_s16;
-  const std::vector<int>& rn2 = ref.descriptor_norm2;
-  std::vector<NearestTwo> out(S.rows);
-  if (R.rows == 0 || S.rows == 0) return out;
-  if (kernel == KnnKernel::kAuto) {
-    kernel = cpuHas(KnnKernel::kVnni) ? KnnKernel::kVnni
-             : cpuHas(KnnKernel::kAvx2) ? KnnKernel::kAvx2 : KnnKernel::kScalar;
-  }
-  if (!cpuHas(kernel)) kernel = KnnKernel::kScalar;
-#ifdef REFGRASP_HAVE_X86
-  if (kernel == KnnKernel::kVnni) {
-    cv::Mat S8;
-    S.convertTo(S8, CV_8U);
-    const int nblocks = (S.rows + 7) / 8;
-    cv::parallel_for_(cv::Range(0, nblocks), [&](const cv::Range& rg) {
-      knnBlocksVnni(S8, sn2, ref, rg.start, rg.end, out.data());
-    }, 8);
-    return out;
-  }
-#endif
-  const int chunk = 64;
-  const int nchunks = (S.rows + chunk - 1) / chunk;
-  cv::parallel_for_(cv::Range(0, nchunks), [&](const cv::Range& rg) {
-    for (int c = rg.start; c < rg.end; ++c) {
-      const int s0 = c * chunk, s1 = std::min(S.rows, s0 + chunk);
-#ifdef REFGRASP_HAVE_X86
-      if (kernel == KnnKernel::kAvx2) {
-        knnRowsAvx2(S, sn2, R, rn2, s0, s1, out.data());
-        continue;
-      }
-#endif
-      knnRowsScalar(S, sn2, R, rn2, s0, s1, out.data());
-    }
-  });
-  return out;
 }
 
 /// Maps a reference keypoint to its predicted scene position, orientation (rad) and size (px):
@@ -319,8 +96,8 @@ struct Context {
   const Features& scene;
   const GridIndex& grid;
   const MatchOptions& opt;
-  cv::Mat scene16;
-  std::vector<int> scene_norm2;
+  IntegerDescriptors scene_desc;  // scene.descriptors for the integer kernels
+  MatchRejects* rejects;          // counts why hypotheses and fits ended
   double min_scene_size = 0;
   double max_dd2 = 0;
   cv::Rect2d bounds;
@@ -354,12 +131,12 @@ void localSearch(const Context& cx, const Predictor& pred, const std::vector<int
       continue;
     cx.grid.radiusSearch(xs, r, &cand);
     int best = -1, d1 = INT_MAX, d2 = INT_MAX;
-    const int16_t* rd = cx.ref.descriptors_s16.ptr<int16_t>(i);
+    const int16_t* rd = cx.ref.descriptors.s16.ptr<int16_t>(i);
     for (int j : cand) {
       const cv::KeyPoint& k = sk[j];
       if (std::abs(wrapPi(deg2rad(k.angle) - ang)) > cx.opt.orientation_tolerance_rad) continue;
       if (std::abs(k.size - size) > cx.opt.scale_tolerance * size) continue;
-      const int d = dist2(rd, cx.scene16.ptr<int16_t>(j));
+      const int d = squaredDistance(rd, cx.scene_desc.s16.ptr<int16_t>(j));
       if (d < d2) {
         if (d < d1) {
           d2 = d1;
@@ -401,7 +178,12 @@ HomographyOptions homographyOptions(const MatchOptions& opt) {
 
 /// Robust homography from matches; fills a candidate when it passes min_inliers and plausibility.
 bool makeCandidate(const Context& cx, const std::vector<Correspondence>& matches, Candidate* c) {
-  if (static_cast<int>(matches.size()) < std::max(4, cx.opt.min_inliers)) return false;
+  auto reject = [](int* counter) {
+    ++*counter;
+    return false;
+  };
+  int* too_few = &cx.rejects->too_few_inliers;
+  if (static_cast<int>(matches.size()) < std::max(4, cx.opt.min_inliers)) return reject(too_few);
   std::vector<Vec2> a, b;
   a.reserve(matches.size());
   b.reserve(matches.size());
@@ -409,8 +191,8 @@ bool makeCandidate(const Context& cx, const std::vector<Correspondence>& matches
     a.push_back(pt(cx.ref.features.keypoints[m.ref]));
     b.push_back(pt(cx.scene.keypoints[m.scene]));
   }
-  HomographyResult hr = estimateHomography(a, b, homographyOptions(cx.opt));
-  if (!hr.ok || static_cast<int>(hr.inliers.size()) < cx.opt.min_inliers) return false;
+  HomographyResult hr = estimateHomographyUnchecked(a, b, homographyOptions(cx.opt));
+  if (!hr.ok || static_cast<int>(hr.inliers.size()) < cx.opt.min_inliers) return reject(too_few);
   {
     // Tighten to 3 sigma of the fit (the RANSAC threshold admits coarse mismatches), refit.
     const double tight = std::max(1.0, 3 * hr.rms_px);
@@ -422,17 +204,19 @@ bool makeCandidate(const Context& cx, const std::vector<Correspondence>& matches
         ka.push_back(a[k]);
         kb.push_back(b[k]);
       }
-    if (static_cast<int>(keep.size()) < cx.opt.min_inliers) return false;
+    if (static_cast<int>(keep.size()) < cx.opt.min_inliers) return reject(too_few);
     const Eigen::Matrix3d Ht = fitHomographyLeastSquares(ka, kb);
-    if (!Ht.allFinite()) return false;
+    if (!Ht.allFinite()) return reject(too_few);
     hr.H = Ht;
     hr.inliers = keep;
   }
-  if (!homographyPlausible(hr.H, cx.ref.hull_px, kMinAreaPx2)) return false;
+  if (!homographyPlausible(hr.H, cx.ref.hull_px, kMinAreaPx2))
+    return reject(&cx.rejects->implausible_homography);
   std::vector<cv::Point2f> in, hull;
   for (int k : hr.inliers) in.push_back(cx.ref.features.keypoints[matches[k].ref].pt);
   cv::convexHull(in, hull);
-  if (cv::contourArea(hull) < cx.opt.min_inlier_spread * cx.ref.feature_hull_area_px2) return false;
+  if (cv::contourArea(hull) < cx.opt.min_inlier_spread * cx.ref.feature_hull_area_px2)
+    return reject(&cx.rejects->narrow_inlier_spread);
   c->H = hr.H;
   c->inliers.clear();
   double sum = 0;
@@ -513,11 +297,15 @@ bool evaluateHypothesis(const Context& cx, int r, int s, Candidate* out) {
   auto simRadius = [&](const Vec2& xs) {
     return factor * (kSimilarityErrorPx + kSimilarityErrorPerPx * (xs - seed).norm());
   };
+  auto tooFewLocal = [&] {
+    ++cx.rejects->too_few_local_matches;
+    return false;
+  };
   std::vector<LocalMatch> m;
   localSearch(cx, sim, &cx.ref.neighbours[r], simRadius, &m, kQuickNeighbours);
-  if (static_cast<int>(m.size()) < kQuickMinMatches) return false;
+  if (static_cast<int>(m.size()) < kQuickMinMatches) return tooFewLocal();
   localSearch(cx, sim, &cx.ref.neighbours[r], simRadius, &m);
-  if (static_cast<int>(m.size()) < kPass1MinMatches) return false;
+  if (static_cast<int>(m.size()) < kPass1MinMatches) return tooFewLocal();
 
   // A homography fitted to a neighbourhood extrapolates with an error that grows with the
   // distance from it; the second fit covers the whole pattern and is trusted uniformly.
@@ -527,8 +315,8 @@ bool evaluateHypothesis(const Context& cx, int r, int s, Candidate* out) {
       a.push_back(pt(rk[x.ref]));
       b.push_back(pt(sk[x.scene]));
     }
-    const HomographyResult h = estimateHomography(a, b, homographyOptions(cx.opt));
-    if (!h.ok || static_cast<int>(h.inliers.size()) < kPass1MinMatches) return false;
+    const HomographyResult h = estimateHomographyUnchecked(a, b, homographyOptions(cx.opt));
+    if (!h.ok || static_cast<int>(h.inliers.size()) < kPass1MinMatches) return tooFewLocal();
     const Predictor hom = Predictor::homography(h.H);
     const double e0 = std::max(kHomographyErrorPx, h.rms_px);
     if (pass == 0) {
@@ -654,14 +442,6 @@ MatchResult matchRatio(const Context& cx, const std::vector<NearestTwo>& nn) {
 
 }  // namespace
 
-bool knnKernelAvailable(KnnKernel kernel) { return cpuHas(kernel); }
-
-std::vector<NearestTwo> nearestTwo(const ReferenceIndex& ref, const Features& scene, KnnKernel kernel) {
-  std::vector<int> n2;
-  const cv::Mat s16 = toS16(scene.descriptors, &n2);
-  return globalKnn(s16, n2, ref, kernel);
-}
-
 void MatchOptions::check() const {
   refgrasp::check(global_ratio > 0 && global_ratio <= 1, "MatchOptions.global_ratio", "must be in (0, 1]");
   refgrasp::check(local_ratio > 0 && local_ratio <= 1, "MatchOptions.local_ratio", "must be in (0, 1]");
@@ -683,113 +463,26 @@ void MatchOptions::check() const {
                   "must be in [0, 1)");
 }
 
-ReferenceIndex buildReferenceIndex(Features f, const std::vector<Vec2>& polygon,
-                                   const MatchOptions& opt) {
-  opt.check();
-  refgrasp::check(polygon.empty() || polygon.size() >= 3, "buildReferenceIndex",
-                  "pattern polygon needs >= 3 vertices");
-  refgrasp::check(f.descriptors.rows == f.size() && (f.size() == 0 || f.descriptors.cols == kDim),
-                  "buildReferenceIndex", "descriptors must be N x 128");
-  ReferenceIndex ri;
-  ri.polygon_px = polygon;
-  if (ri.polygon_px.empty()) {
-    const double w = f.image_size.width, h = f.image_size.height;
-    ri.polygon_px = {Vec2(-0.5, -0.5), Vec2(w - 0.5, -0.5), Vec2(w - 0.5, h - 0.5), Vec2(-0.5, h - 0.5)};
-  }
-  for (const auto& p : ri.polygon_px) refgrasp::check(p.allFinite(), "buildReferenceIndex", "non-finite polygon vertex");
-  std::vector<cv::Point2f> poly, hull;
-  for (const auto& p : ri.polygon_px) poly.emplace_back(static_cast<float>(p.x()), static_cast<float>(p.y()));
-  cv::convexHull(poly, hull, /*clockwise=*/false);
-  for (const auto& p : hull) ri.hull_px.emplace_back(p.x, p.y);
-  // Centroid of the polygon (area-weighted), bounding-box diagonal.
-  double a2 = 0, cx = 0, cy = 0;
-  const int np = static_cast<int>(ri.polygon_px.size());
-  for (int i = 0; i < np; ++i) {
-    const Vec2 &p = ri.polygon_px[i], &q = ri.polygon_px[(i + 1) % np];
-    const double c = p.x() * q.y() - q.x() * p.y();
-    a2 += c;
-    cx += (p.x() + q.x()) * c;
-    cy += (p.y() + q.y()) * c;
-  }
-  refgrasp::check(std::abs(a2) > 1e-9, "buildReferenceIndex", "pattern polygon has zero area");
-  ri.centre_px = Vec2(cx, cy) / (3 * a2);
-  Eigen::Vector2d lo = ri.polygon_px[0], hi = ri.polygon_px[0];
-  for (const auto& p : ri.polygon_px) {
-    lo = lo.cwiseMin(p);
-    hi = hi.cwiseMax(p);
-  }
-  ri.diagonal_px = (hi - lo).norm();
-
-  // Inside the polygon, strongest first.
-  std::vector<int> keep;
-  for (int i = 0; i < f.size(); ++i)
-    if (cv::pointPolygonTest(poly, f.keypoints[i].pt, false) >= 0) keep.push_back(i);
-  auto stronger = [&](int a, int b) { return f.keypoints[a].response > f.keypoints[b].response; };
-  std::stable_sort(keep.begin(), keep.end(), stronger);
-  if (static_cast<int>(keep.size()) > opt.max_reference_features) {
-    // Round robin over octaves (strongest first within each): coarse features are few and weak
-    // but the only ones left when the object is far away, so the cap must not drop them.
-    std::map<int, std::vector<int>> octaves;
-    for (int i : keep) octaves[static_cast<int>(std::floor(std::log2(std::max(1e-3f, f.keypoints[i].size))))].push_back(i);
-    std::vector<int> picked;
-    for (size_t rank = 0; static_cast<int>(picked.size()) < opt.max_reference_features; ++rank)
-      for (const auto& [oct, list] : octaves)
-        if (rank < list.size() && static_cast<int>(picked.size()) < opt.max_reference_features)
-          picked.push_back(list[rank]);
-    std::stable_sort(picked.begin(), picked.end(), stronger);
-    keep = picked;
-  }
-  ri.features.image_size = f.image_size;
-  ri.features.descriptors.create(static_cast<int>(keep.size()), kDim, CV_32F);
-  for (size_t k = 0; k < keep.size(); ++k) {
-    ri.features.keypoints.push_back(f.keypoints[keep[k]]);
-    f.descriptors.row(keep[k]).copyTo(ri.features.descriptors.row(static_cast<int>(k)));
-  }
-  ri.descriptors_s16 = toS16(ri.features.descriptors, &ri.descriptor_norm2);
-  if (!ri.features.keypoints.empty()) {
-    std::vector<cv::Point2f> pts, fh;
-    for (const auto& k : ri.features.keypoints) pts.push_back(k.pt);
-    cv::convexHull(pts, fh);
-    ri.feature_hull_area_px2 = cv::contourArea(fh);
-  }
-  ri.descriptors_lo_s8.create(ri.descriptors_s16.size(), CV_8S);
-  ri.descriptors_hi_s8.create(ri.descriptors_s16.size(), CV_8S);
-  ri.has_hi.assign(ri.descriptors_s16.rows, 0);
-  for (int i = 0; i < ri.descriptors_s16.rows; ++i)
-    for (int k = 0; k < kDim; ++k) {
-      const int v = ri.descriptors_s16.at<int16_t>(i, k);
-      ri.descriptors_lo_s8.at<int8_t>(i, k) = static_cast<int8_t>(v & 127);
-      ri.descriptors_hi_s8.at<int8_t>(i, k) = static_cast<int8_t>(v >> 7);
-      ri.has_hi[i] |= v >= 128;
-    }
-
-  const int n = ri.features.size();
-  ri.neighbours.resize(n);
-  std::vector<std::pair<double, int>> d(n);
-  for (int i = 0; i < n; ++i) {
-    for (int j = 0; j < n; ++j)
-      d[j] = {(pt(ri.features.keypoints[i]) - pt(ri.features.keypoints[j])).squaredNorm() + (i == j ? -1 : 0), j};
-    const int k = std::min(n, kStoredNeighbours);
-    std::partial_sort(d.begin(), d.begin() + k, d.end());
-    for (int q = 0; q < k; ++q) ri.neighbours[i].push_back(d[q].second);
-  }
-  return ri;
-}
-
 MatchResult matchObject(const ReferenceIndex& ref, const Features& scene, const GridIndex& grid,
                         const MatchOptions& opt) {
   opt.check();
-  MatchResult res;
-  if (ref.features.size() < 4 || scene.size() < 4) return res;
-  Context cx{ref, scene, grid, opt, {}, {}, 0, 0, {}};
-  cx.scene16 = toS16(scene.descriptors, &cx.scene_norm2);
+  return matchObjectUnchecked(ref, scene, grid, opt);
+}
+
+MatchResult matchObjectUnchecked(const ReferenceIndex& ref, const Features& scene,
+                                 const GridIndex& grid, const MatchOptions& opt) {
+  if (ref.features.size() < 4 || scene.size() < 4) return {};
+  MatchRejects rejects;
+  Context cx{ref, scene, grid, opt, integerDescriptors(scene.descriptors, false), &rejects, 0, 0, {}};
   double min_size = 1e9;
   for (const auto& k : scene.keypoints) min_size = std::min<double>(min_size, k.size);
   cx.min_scene_size = 0.8 * min_size;
   cx.max_dd2 = opt.max_descriptor_distance * opt.max_descriptor_distance;
   cx.bounds = cv::Rect2d(-0.5, -0.5, scene.image_size.width, scene.image_size.height);
-  const std::vector<NearestTwo> nn = globalKnn(cx.scene16, cx.scene_norm2, ref);
-  return opt.matcher == MatcherType::kPaper ? matchPaper(cx, nn) : matchRatio(cx, nn);
+  const std::vector<NearestTwo> nn = nearestTwo(ref.descriptors, cx.scene_desc);
+  MatchResult res = opt.matcher == MatcherType::kPaper ? matchPaper(cx, nn) : matchRatio(cx, nn);
+  res.rejected = rejects;
+  return res;
 }
 
 }  // namespace refgrasp::detector

@@ -1,6 +1,7 @@
 #pragma once
 // Matching reference features to a scene: the paper's local-geometric-consistency matcher
-// (Section III-B) and the usual ratio-test + robust homography baseline.
+// (Section III-B) and the usual ratio-test + robust homography baseline. Both start from the
+// global 2-NN (knn.h) against the object's reference index (reference_index.h).
 //
 // Frames: "reference px" are pixels of the reference image (possibly undistorted by the caller),
 // "scene px" pixels of the scene image. Every homography maps reference px to scene px:
@@ -12,6 +13,7 @@
 #include <vector>
 
 #include "detector/features.h"
+#include "detector/reference_index.h"
 
 namespace refgrasp::detector {
 
@@ -42,31 +44,6 @@ struct MatchOptions {
   void check() const;
 };
 
-/// Built once per object: reference features (capped, inside the pattern polygon), pattern
-/// geometry and the descriptor index used for global matching.
-struct ReferenceIndex {
-  Features features;                          ///< kept reference features (indices used below)
-  std::vector<Eigen::Vector2d> polygon_px;    ///< pattern polygon, reference px
-  std::vector<Eigen::Vector2d> hull_px;       ///< its convex hull (used for plausibility/overlap)
-  Eigen::Vector2d centre_px = Eigen::Vector2d::Zero();  ///< pattern centre c_r (polygon centroid)
-  double diagonal_px = 0;                     ///< diagonal of the polygon's bounding box
-  double feature_hull_area_px2 = 0;           ///< area of the convex hull of the kept features
-  std::vector<std::vector<int>> neighbours;   ///< per feature: nearest features (reference px), self first
-  cv::Mat descriptors_s16;                    ///< CV_16S copy (OpenCV SIFT values are integers 0..255)
-  std::vector<int> descriptor_norm2;          ///< squared L2 norms of descriptors_s16 rows
-  /// Exact integer split for 8-bit dot products: value = lo + 128 * hi, lo in [0,127], hi in {0,1}.
-  cv::Mat descriptors_lo_s8, descriptors_hi_s8;  ///< CV_8S, N x 128
-  std::vector<unsigned char> has_hi;             ///< row has a value >= 128
-};
-
-/// Keeps features inside the polygon (>= 3 vertices; empty = whole image), then at most
-/// opt.max_reference_features: strongest first within each octave, taken round robin over the
-/// octaves (so coarse features, the only ones left on far objects, survive the cap); the result
-/// is ordered strongest first. Keypoint .pt may already be undistorted by the caller.
-ReferenceIndex buildReferenceIndex(Features ref_features,
-                                   const std::vector<Eigen::Vector2d>& pattern_polygon_px,
-                                   const MatchOptions& opt);
-
 struct Correspondence {
   int ref;                    ///< index into ReferenceIndex::features
   int scene;                  ///< index into the scene Features
@@ -80,29 +57,22 @@ struct MatchCandidate {
   double score = 0;
 };
 
+/// How many hypotheses (paper) or robust fits (ratio; re-fits in the selection) ended at each
+/// stage without giving a candidate.
+struct MatchRejects {
+  int too_few_local_matches = 0;   ///< paper: the local search found too few consistent matches
+  int too_few_inliers = 0;         ///< robust homography with < min_inliers inliers, or none
+  int implausible_homography = 0;  ///< flipped, non-convex, near-singular or tiny pattern
+  int narrow_inlier_spread = 0;    ///< inliers span < min_inlier_spread of the reference
+};
+
 struct MatchResult {
   /// Best first, disjoint in the scene, each with >= min_inliers and a plausible H.
   std::vector<MatchCandidate> instances;
   int hypotheses_evaluated = 0;  ///< hypotheses given a local search (paper) / 1 (ratio)
   int global_matches = 0;        ///< scene features passing the global ratio test
+  MatchRejects rejected;
 };
-
-/// Nearest and second-nearest reference feature of one scene feature; squared L2 distances of
-/// the integer-valued SIFT descriptors (exact).
-struct NearestTwo {
-  int best = -1;            ///< index into ReferenceIndex::features, -1 when there is none
-  int d1 = 2147483647;      ///< squared distance to best
-  int d2 = 2147483647;      ///< squared distance to the second nearest
-  int second = -1;          ///< index of the second nearest
-};
-/// Implementations of the global 2-NN; all exact and identical in result. kAuto takes the
-/// fastest the CPU has (AVX-512 VNNI 8-bit dot products, else AVX2, else scalar).
-enum class KnnKernel { kAuto, kScalar, kAvx2, kVnni };
-bool knnKernelAvailable(KnnKernel kernel);
-/// For every scene feature (global matching, paper III-B); multithreaded. A kernel the CPU
-/// lacks falls back to kScalar.
-std::vector<NearestTwo> nearestTwo(const ReferenceIndex& ref, const Features& scene,
-                                   KnnKernel kernel = KnnKernel::kAuto);
 
 /// Finds up to opt.max_instances instances of the reference in the scene. grid must index
 /// scene.keypoints. An empty result is the normal "not found".
@@ -140,7 +110,11 @@ std::vector<NearestTwo> nearestTwo(const ReferenceIndex& ref, const Features& sc
 ///     more than twice its inliers is dropped, so few matches never beat many; the rest are
 ///     ranked by eq. 3 (lower first) and taken greedily without overlap, scene features used
 ///     once (a candidate losing features is re-fitted and re-checked).
+/// Throws std::invalid_argument when opt.check() fails.
 MatchResult matchObject(const ReferenceIndex& ref, const Features& scene, const GridIndex& grid,
                         const MatchOptions& opt);
+/// matchObject for callers that checked opt once (the Detector, per frame): never checks.
+MatchResult matchObjectUnchecked(const ReferenceIndex& ref, const Features& scene,
+                                 const GridIndex& grid, const MatchOptions& opt);
 
 }  // namespace refgrasp::detector

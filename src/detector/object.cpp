@@ -5,12 +5,15 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "core/error.h"
+#include "core/geometry.h"
 #include "core/yaml.h"
 
 namespace refgrasp::detector {
 namespace fs = std::filesystem;
 
 namespace {
+
+constexpr double kMinRegionAreaPx2 = 16.0;
 
 double cross2(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
   return a.x() * b.y() - a.y() * b.x();
@@ -39,12 +42,6 @@ bool isSimplePolygon(const std::vector<Eigen::Vector2d>& p) {
       if (segmentsIntersect(p[i], p[(i + 1) % n], p[j], p[(j + 1) % n])) return false;
     }
   return true;
-}
-
-double polygonArea(const std::vector<Eigen::Vector2d>& p) {
-  double a = 0;
-  for (size_t i = 0; i < p.size(); ++i) a += cross2(p[i], p[(i + 1) % p.size()]);
-  return 0.5 * a;
 }
 
 }  // namespace
@@ -85,15 +82,18 @@ ObjectModel makeObjectModel(const std::string& name, const cv::Mat& reference_gr
     polygon = {{-0.5, -0.5}, {W - 0.5, -0.5}, {W - 0.5, H - 0.5}, {-0.5, H - 0.5}};
   } else {
     if (polygon.size() < 3) fail("pattern_region", "needs at least 3 points");
-    for (size_t i = 0; i < polygon.size(); ++i) {
-      const auto& p = polygon[i];
-      if (!p.allFinite()) fail("pattern_region", "point " + std::to_string(i) + " is not finite");
-      if (p.x() < -0.5 || p.y() < -0.5 || p.x() > W - 0.5 || p.y() > H - 0.5)
-        fail("pattern_region", "point " + std::to_string(i) + " lies outside the " +
-                                   std::to_string(W) + "x" + std::to_string(H) + " image");
-    }
+    for (size_t i = 0; i < polygon.size(); ++i)
+      if (!polygon[i].allFinite())
+        fail("pattern_region", "point " + std::to_string(i) + " is not finite");
     if (!isSimplePolygon(polygon)) fail("pattern_region", "polygon is self-intersecting");
-    if (std::abs(polygonArea(polygon)) < 16.0) fail("pattern_region", "polygon area below 16 px^2");
+    if (std::abs(signedArea(polygon)) < kMinRegionAreaPx2)
+      fail("pattern_region", "polygon area below 16 px^2");
+    // The outline may run past the image (a cropped reference); features come from the part
+    // inside it, so that part must not be empty.
+    const auto inside = clipToBox(polygon, {-0.5, -0.5}, {W - 0.5, H - 0.5});
+    if (std::abs(signedArea(inside)) < kMinRegionAreaPx2)
+      fail("pattern_region", "polygon lies outside the " + std::to_string(W) + "x" +
+                                 std::to_string(H) + " image (less than 16 px^2 inside it)");
   }
 
   ObjectModel m;

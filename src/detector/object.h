@@ -9,8 +9,11 @@
 //   reference_pose:                   # optional: object frame in the reference camera frame
 //     translation: [0, 0, 0.5]        #   metres
 //     rotation_vector: [0, 0, 0]      #   radians (axis * angle)
-//   pattern_region: [[u,v], ...]      # optional polygon in reference px (>= 3 points, simple,
-//                                     # inside the image); default: the whole image
+//   pattern_region: [[u,v], ...]      # optional polygon in reference px (>= 3 points, simple);
+//                                     # default: the whole image. The outline of the physical
+//                                     # pattern: it may run past the image (a cropped reference)
+//                                     # as long as some of it (>= 16 px^2) is inside; features
+//                                     # come from that part, corners and pose use the outline.
 //   pattern_plane: {normal: [0,0,1], offset: 0.0}   # optional, object frame: n.X = offset
 //
 // Without reference_pose the object is 2D-only: detections give H and corners, no cMo.

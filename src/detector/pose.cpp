@@ -12,15 +12,14 @@ namespace refgrasp::detector {
 const char* poseMethodName(PoseMethod m) { return m == PoseMethod::kPaper ? "paper" : "refined"; }
 
 void PoseOptions::check() const {
-  refgrasp::check(paper_lm_iterations >= 0, "PoseOptions", "paper_lm_iterations must be >= 0");
-  refgrasp::check(refined_lm_iterations >= 0, "PoseOptions",
-                  "refined_lm_iterations must be >= 0");
-  refgrasp::check(std::isfinite(huber_px) && huber_px >= 0, "PoseOptions",
-                  "huber_px must be finite and >= 0");
+  refgrasp::check(paper_lm_iterations >= 0, "PoseOptions.paper_lm_iterations", "must be >= 0");
+  refgrasp::check(refined_lm_iterations >= 0, "PoseOptions.refined_lm_iterations", "must be >= 0");
+  refgrasp::check(std::isfinite(huber_px) && huber_px >= 0, "PoseOptions.huber_px",
+                  "must be finite and >= 0");
   refgrasp::check(std::isfinite(keypoint_sigma_per_size) && keypoint_sigma_per_size >= 0,
-                  "PoseOptions", "keypoint_sigma_per_size must be finite and >= 0");
-  refgrasp::check(std::isfinite(min_corner_depth_m) && min_corner_depth_m > 0, "PoseOptions",
-                  "min_corner_depth_m must be positive");
+                  "PoseOptions.keypoint_sigma_per_size", "must be finite and >= 0");
+  refgrasp::check(std::isfinite(min_corner_depth_m) && min_corner_depth_m > 0,
+                  "PoseOptions.min_corner_depth_m", "must be positive");
 }
 
 Eigen::Vector2d projectPinhole(const Eigen::Matrix3d& K, const Eigen::Vector3d& Xc) {

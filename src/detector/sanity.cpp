@@ -3,18 +3,19 @@
 #include <cmath>
 
 #include "core/error.h"
+#include "core/geometry.h"
 
 namespace refgrasp::detector {
 
 void SanityOptions::check() const {
-  refgrasp::check(std::isfinite(min_distance_m) && min_distance_m >= 0, "SanityOptions",
-                  "min_distance_m must be finite and >= 0");
+  refgrasp::check(std::isfinite(min_distance_m) && min_distance_m >= 0,
+                  "SanityOptions.min_distance_m", "must be finite and >= 0");
   refgrasp::check(std::isfinite(max_distance_m) && max_distance_m > min_distance_m,
-                  "SanityOptions", "max_distance_m must be finite and > min_distance_m");
-  refgrasp::check(std::isfinite(min_area_px2) && min_area_px2 >= 0, "SanityOptions",
-                  "min_area_px2 must be >= 0");
-  refgrasp::check(std::isfinite(max_area_fraction) && max_area_fraction > 0, "SanityOptions",
-                  "max_area_fraction must be positive");
+                  "SanityOptions.max_distance_m", "must be finite and > min_distance_m");
+  refgrasp::check(std::isfinite(min_area_px2) && min_area_px2 >= 0, "SanityOptions.min_area_px2",
+                  "must be >= 0");
+  refgrasp::check(std::isfinite(max_area_fraction) && max_area_fraction > 0,
+                  "SanityOptions.max_area_fraction", "must be positive");
 }
 
 const char* sanityStatusName(SanityStatus s) {
@@ -31,11 +32,7 @@ const char* sanityStatusName(SanityStatus s) {
   return "?";
 }
 
-double quadArea(const std::array<Eigen::Vector2d, 4>& q) {
-  double a = 0;
-  for (int i = 0; i < 4; ++i) a += q[i].x() * q[(i + 1) % 4].y() - q[(i + 1) % 4].x() * q[i].y();
-  return 0.5 * a;
-}
+double quadArea(const std::array<Eigen::Vector2d, 4>& q) { return signedArea(q); }
 
 bool isConvexQuad(const std::array<Eigen::Vector2d, 4>& q) {
   int pos = 0, neg = 0;

@@ -118,7 +118,8 @@ SearchStep SearchController::decide(Seconds t, SearchStep s) {
     case SearchPhase::kLook: {
       if (!frame || frame->stamp < settle_until_) break;  // wait for a frame taken after settling
       const detector::StereoDetectionResult r =
-          detector_.detectStereo(frame->left, frame->right, robot_.camera().rig());
+          detector_.detectStereo(frame->left, frame->right, robot_.camera().rig(),
+                                 frame->frameStamp());
       if (!r.ok) return fail(s, "frame " + std::to_string(frame->index) + ": " + r.error);
       SearchLook look;
       look.number = ++looks_;

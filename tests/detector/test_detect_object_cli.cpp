@@ -176,3 +176,70 @@ TEST_F(DetectObjectCli, BadInputGivesOneLineErrorsAndExitCodes) {
   EXPECT_EQ(run("--object " + kObject + " --right " + path("right.png") + " " + path("scene.png")).status, 2);
   EXPECT_NE(run(path("scene.png")).status, 0);  // --object is required
 }
+
+// README: `detect_object --object OBJ.yaml [...] IMAGE...`: the repeatable --object takes one file,
+// so the images after it are images; options and images in any order, --opt=value too.
+TEST_F(DetectObjectCli, ImagesAndOptionsInAnyOrder) {
+  const std::string cam = path("scene_cam.yaml"), scene = path("scene.png"), clutter = path("clutter.png");
+  const std::vector<std::string> orders = {
+      "--camera " + cam + " --object " + kObject + " " + scene + " " + clutter,
+      scene + " --camera " + cam + " --object " + kObject + " " + clutter,
+      scene + " " + clutter + " --object " + kObject + " --camera " + cam,
+      "--object=" + kObject + " --camera=" + cam + " " + scene + " " + clutter,
+  };
+  for (const std::string& args : orders) {
+    const CliRun r = run(args);
+    ASSERT_EQ(r.status, 0) << args << "\n" << r.err;
+    ASSERT_EQ(r.lines.size(), 2u) << args << "\n" << r.out;
+    EXPECT_EQ(r.lines[0]["image"], scene) << args;
+    EXPECT_TRUE(r.lines[0]["found"].get<bool>()) << args;
+    EXPECT_EQ(r.lines[1]["image"], clutter) << args;
+    EXPECT_FALSE(r.lines[1]["found"].get<bool>()) << args;
+  }
+  // Several objects between the images, three images (one twice).
+  const CliRun r = run("--object " + kObject + " " + clutter + " --object=" + kObject2 + " " + scene +
+                       " --camera " + cam + " " + scene);
+  ASSERT_EQ(r.status, 0) << r.err;
+  ASSERT_EQ(r.lines.size(), 6u) << r.out;  // 3 images x 2 objects
+  const std::vector<std::string> expect_images = {clutter, clutter, scene, scene, scene, scene};
+  for (size_t i = 0; i < r.lines.size(); ++i) {
+    EXPECT_EQ(r.lines[i]["image"], expect_images[i]) << i;
+    EXPECT_EQ(r.lines[i]["object"], i % 2 ? "cereal_box" : "poster_concert") << i;
+    EXPECT_EQ(r.lines[i]["found"].get<bool>(), i >= 2 && i % 2 == 0) << i;
+  }
+  // Stereo: the right image after --right, the left one anywhere.
+  const CliRun s = run(scene + " --right " + path("right.png") + " --object " + kObject + " --stereo " +
+                       path("rig.yaml"));
+  ASSERT_EQ(s.status, 0) << s.err;
+  ASSERT_EQ(s.lines.size(), 1u) << s.out;
+  EXPECT_EQ(s.lines[0]["eyes"], "both");
+}
+
+TEST_F(DetectObjectCli, DetectorConfigFileAndCommandLineOverrides) {
+  const std::string args = " --object " + kObject + " --camera " + path("scene_cam.yaml") + " " + path("scene.png");
+  std::ofstream(dir() / "two.yaml") << "match:\n  max_instances: 2  # lines then carry object and instance\n";
+  CliRun r = run("--detector-config " + path("two.yaml") + args);
+  ASSERT_EQ(r.status, 0) << r.err;
+  ASSERT_EQ(r.lines.size(), 1u) << r.out;
+  EXPECT_TRUE(r.lines[0]["found"].get<bool>());
+  EXPECT_EQ(r.lines[0]["object"], "poster_concert");  // tagged: the file's max_instances is 2
+  // The command line overrides the file.
+  r = run("--detector-config " + path("two.yaml") + " --max-instances 1" + args);
+  ASSERT_EQ(r.status, 0) << r.err;
+  ASSERT_EQ(r.lines.size(), 1u);
+  EXPECT_FALSE(r.lines[0].contains("object"));
+  // The shipped file is the defaults: the same line as without it (timings aside).
+  r = run("--detector-config " + std::string(REFGRASP_SOURCE_DIR) + "/config/detector.yaml" + args);
+  CliRun plain = run(args);
+  ASSERT_EQ(r.lines.size(), 1u);
+  ASSERT_EQ(plain.lines.size(), 1u);
+  r.lines[0].erase("time_ms");
+  plain.lines[0].erase("time_ms");
+  EXPECT_EQ(r.lines[0], plain.lines[0]);
+  // A bad file: exit 2, one line naming the file and the field.
+  std::ofstream(dir() / "typo.yaml") << "match: {min_inlirs: 5}\n";
+  r = run("--detector-config " + path("typo.yaml") + args);
+  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(r.err, "detect_object: " + path("typo.yaml") + ": match.min_inlirs: unknown field\n");
+  EXPECT_TRUE(r.lines.empty());
+}

@@ -10,6 +10,8 @@
 
 #include "robot/sim/synthetic_scene.h"
 #include "detector/detector.h"
+#include "detector/detector_internal.h"
+#include "detector/homography.h"
 
 using namespace refgrasp;
 using namespace refgrasp::detector;
@@ -94,13 +96,16 @@ TEST(Detector, PoseAccuracyBothMethods) {
     spec.seed = 1000 + i;
     const RenderedScene s = renderTarget(cam, tex, kWidth, heightOf(tex, kWidth), spec);
     // Both methods on the same matches.
-    const Features f = det.extract(s.image, cam);
+    const Features f = DetectorInternals::extract(det, s.image, cam);
     const GridIndex grid(f.keypoints, f.image_size);
-    const MatchResult m = matchObject(det.referenceIndex(id), f, grid, det.options().match);
+    const MatchResult m =
+        matchObject(DetectorInternals::referenceIndex(det, id), f, grid, det.options().match);
     std::optional<Pose> p_paper, p_refined;
     if (!m.instances.empty()) {
-      const PoseResult a = det.estimatePose(id, m.instances[0], f, cam, PoseMethod::kPaper);
-      const PoseResult b = det.estimatePose(id, m.instances[0], f, cam, PoseMethod::kRefined);
+      const PoseResult a =
+          DetectorInternals::estimatePose(det, id, m.instances[0], f, cam, PoseMethod::kPaper);
+      const PoseResult b =
+          DetectorInternals::estimatePose(det, id, m.instances[0], f, cam, PoseMethod::kRefined);
       if (a.ok) p_paper = a.cMo;
       if (b.ok) p_refined = b.cMo;
     }
@@ -117,7 +122,7 @@ TEST(Detector, PoseAccuracyBothMethods) {
     refined.add(p_refined, s.cMo);
     // The facade (default method, sanity check) on the same frame.
     const DetectionResult r = det.detect(s.image, cam);
-    const Detection* d = r.find(id);
+    const std::optional<Detection> d = r.find(id);
     facade.add(d ? d->cMo : std::nullopt, s.cMo);
     if (d) {
       EXPECT_LT(cornerError(d->corners, s.corners), 3.0) << "pose " << i;
@@ -153,8 +158,8 @@ TEST(Detector, JitterAtHalfMetre) {
     spec.noise_sigma = 2.0;
     spec.seed = 77 + i;
     const RenderedScene s = renderTarget(cam, tex, kWidth, heightOf(tex, kWidth), spec);
-    const DetectionResult r = det.detect(s.image, cam);  // owns the detection find() points to
-    const Detection* d = r.find(0);
+    const DetectionResult r = det.detect(s.image, cam);
+    const std::optional<Detection> d = r.find(0);
     ASSERT_TRUE(d && d->cMo) << "frame " << i;
     z.push_back(d->cMo->t.z());
   }
@@ -217,8 +222,8 @@ TEST(Detector, TwoObjectsShareOneExtraction) {
         SceneSpec{Pose(), 2.0, 0.0, 0.0, static_cast<uint64_t>(300 + seed)});
     const DetectionResult r = det.detect(s.image, cam);
     ASSERT_TRUE(r.ok);
-    const Detection* da = r.find(ia);
-    const Detection* db = r.find(ib);
+    const std::optional<Detection> da = r.find(ia);
+    const std::optional<Detection> db = r.find(ib);
     ASSERT_TRUE(da && db) << "seed " << seed;
     EXPECT_LT(rotationError(*da->cMo, pa), 1.0 * kDeg);
     EXPECT_LT(translationError(*da->cMo, pa), 0.01 * pa.t.norm());
@@ -243,12 +248,12 @@ TEST(Detector, TwoInstancesOfOneObject) {
       SceneSpec{Pose(), 2.0, 0.0, 0.0, 808});
   const DetectionResult r = det.detect(s.image, cam);
   ASSERT_TRUE(r.find(0, 0) && r.find(0, 1));
-  EXPECT_EQ(r.find(0, 2), nullptr);  // only two copies in the frame
+  EXPECT_FALSE(r.find(0, 2).has_value());  // only two copies in the frame
   // Each true copy is matched by exactly one instance, with an accurate pose.
   for (const Pose& truth : {p0, p1}) {
     int matched = 0;
     for (int k = 0; k < 2; ++k) {
-      const Pose& est = *r.find(0, k)->cMo;
+      const Pose est = *r.find(0, k)->cMo;
       if (translationError(est, truth) < 0.01 * truth.t.norm()) {
         ++matched;
         EXPECT_LT(rotationError(est, truth), 1.0 * kDeg);
@@ -268,7 +273,7 @@ TEST(Detector, TwoDimensionalObjectGivesHomographyOnly) {
   spec.seed = 9;
   const RenderedScene s = renderTarget(cam, tex, kWidth, heightOf(tex, kWidth), spec);
   const DetectionResult r = det.detect(s.image, cam);
-  const Detection* d = r.find(id);
+  const std::optional<Detection> d = r.find(id);
   ASSERT_TRUE(d);
   EXPECT_FALSE(d->cMo.has_value());
   EXPECT_LT(cornerError(d->corners, s.corners), 2.0);
@@ -293,8 +298,8 @@ TEST(Detector, DistortedSceneCamera) {
     spec.cMo = Pose::fromRotationVector({0.2, 0.1 * i, -0.3}, {0.08 - 0.05 * i, 0.05, 0.55});
     spec.seed = 40 + i;
     const RenderedScene s = renderTarget(cam, tex, kWidth, heightOf(tex, kWidth), spec);
-    const DetectionResult r = det.detect(s.image, cam);  // owns the detection find() points to
-    const Detection* d = r.find(0);
+    const DetectionResult r = det.detect(s.image, cam);
+    const std::optional<Detection> d = r.find(0);
     ASSERT_TRUE(d && d->cMo) << i;
     EXPECT_LT(rotationError(*d->cMo, spec.cMo), 1.0 * kDeg);
     EXPECT_LT(translationError(*d->cMo, spec.cMo), 0.01 * spec.cMo.t.norm());
@@ -324,7 +329,7 @@ TEST(Detector, DistortedSceneKeepsTheDenseRefinementAccuracy) {
     const RenderedScene sd = renderTarget(distorted, tex, kWidth, heightOf(tex, kWidth), spec);
     const DetectionResult ri = det.detect(si.image, ideal), rd = det.detect(sd.image, distorted),
                           rf = det_features.detect(sd.image, distorted);
-    const Detection *di = ri.find(0), *dd = rd.find(0), *df = rf.find(0);
+    const std::optional<Detection> di = ri.find(0), dd = rd.find(0), df = rf.find(0);
     ASSERT_TRUE(di && di->cMo && dd && dd->cMo && df && df->cMo) << i;
     worst_ideal = std::max(worst_ideal, rotationError(*di->cMo, spec.cMo) / kDeg);
     worst_distorted = std::max(worst_distorted, rotationError(*dd->cMo, spec.cMo) / kDeg);
@@ -338,6 +343,62 @@ TEST(Detector, DistortedSceneKeepsTheDenseRefinementAccuracy) {
   EXPECT_LT(worst_distorted, 0.35);
   EXPECT_LT(worst_distorted, 2.0 * worst_ideal + 0.05);
   EXPECT_LT(worst_distorted, worst_features);
+}
+
+TEST(Detector, CroppedReferenceWithRegionPastItsBorder) {
+  // The reference photo shows only the middle of the poster (cropped unevenly); its outline, the
+  // pattern region, runs past the photo on every side. Features come from the photo, corners and
+  // pose from the outline: the full poster's corners and pose are recovered.
+  const cv::Mat tex = loadMedia(kTexture);
+  const int left = 30, top = 20, right = 10, bottom = 25;
+  const cv::Mat crop = tex(cv::Rect(left, top, tex.cols - left - right, tex.rows - top - bottom)).clone();
+  const Intrinsics full_cam = textureCamera(tex, kWidth, 0.5);
+  const Intrinsics crop_cam = Intrinsics::pinhole(crop.cols, crop.rows, full_cam.fx,
+                                                  full_cam.cx - left, full_cam.cy - top);
+  const std::vector<Eigen::Vector2d> outline = {
+      {-0.5 - left, -0.5 - top}, {tex.cols - 0.5 - left, -0.5 - top},
+      {tex.cols - 0.5 - left, tex.rows - 0.5 - top}, {-0.5 - left, tex.rows - 0.5 - top}};
+  const ObjectModel cropped = makeObjectModel("cropped", crop, crop_cam,
+                                              Pose(Eigen::Matrix3d::Identity(), {0, 0, 0.5}), outline);
+  const ObjectModel whole = textureObject("whole", tex, kWidth);
+  for (int i = 0; i < 4; ++i)
+    EXPECT_LT((cropped.target->corners_o[i] - whole.target->corners_o[i]).norm(), 1e-12) << i;
+
+  const Intrinsics cam = sceneCamera();
+  DetectorOptions features_only;
+  features_only.dense.enabled = false;
+  Detector det, det_features(features_only);
+  det.addObject(cropped);
+  det_features.addObject(cropped);
+  for (int i = 0; i < 4; ++i) {
+    SceneSpec spec;
+    spec.cMo = Pose::fromRotationVector({0.2 - 0.1 * i, 0.15 * i, 0.3 * i}, {0.05 - 0.03 * i, 0.02, 0.55 + 0.1 * i});
+    spec.seed = 90 + i;
+    const RenderedScene s = renderTarget(cam, tex, kWidth, heightOf(tex, kWidth), spec);
+    for (const Detector* d : {&det, &det_features}) {
+      const std::optional<Detection> found = d->detect(s.image, cam).find(0);
+      ASSERT_TRUE(found && found->cMo) << "pose " << i;
+      EXPECT_LT(rotationError(*found->cMo, s.cMo), 0.5 * kDeg) << i;
+      EXPECT_LT(translationError(*found->cMo, s.cMo), 0.005 * s.cMo.t.norm()) << i;
+      EXPECT_LT(cornerError(found->corners, s.corners), 1.5) << i;
+    }
+    // Dense refinement on this reference: the template is the part of the outline inside the
+    // photo. From the true H moved by ~1.5 px it converges back.
+    std::vector<Eigen::Vector2d> ref_corners(outline.begin(), outline.end()),
+        scene_corners(s.corners.begin(), s.corners.end());
+    const Eigen::Matrix3d H = fitHomographyLeastSquares(ref_corners, scene_corners);
+    Eigen::Matrix3d shift = Eigen::Matrix3d::Identity();
+    shift(0, 2) = 1.2;
+    shift(1, 2) = -0.9;
+    std::array<Eigen::Vector2d, 4> rect;
+    std::copy(outline.begin(), outline.end(), rect.begin());
+    const DenseRefineResult dr =
+        refineHomographyDense(buildReferencePyramid(crop), s.image, shift * H, rect, DenseRefineOptions{});
+    ASSERT_TRUE(dr.ok) << i;
+    double err = 0;
+    for (int k = 0; k < 4; ++k) err = std::max(err, (applyHomography(dr.H, rect[k]) - s.corners[k]).norm());
+    EXPECT_LT(err, 0.5) << i;
+  }
 }
 
 TEST(Detector, InputChecks) {
@@ -367,7 +428,7 @@ TEST(Detector, InputChecks) {
   cv::cvtColor(s.image, bgr, cv::COLOR_GRAY2BGR);
   r = det.detect(bgr, cam);
   ASSERT_TRUE(r.ok);
-  EXPECT_TRUE(r.find(0) != nullptr);
+  EXPECT_TRUE(r.find(0).has_value());
   // Bad options are refused at construction.
   DetectorOptions bad;
   bad.sanity.max_distance_m = -1;

@@ -101,6 +101,26 @@ TEST_F(ObjectFile, RegionAndPlaneOptions) {
   EXPECT_NEAR(off.target->corners_o[2].x(), 0.1 * 0.48 / 0.5, 1e-12);
 }
 
+TEST_F(ObjectFile, RegionMayRunPastTheImage) {
+  // The outline on the pixel edges and 10 px beyond the 400x300 image on every side (a cropped
+  // reference): accepted, corners and 3D corners from the outline as given.
+  const ObjectModel m = loadObjectDefinition(write("past.yaml", std::string(
+      "reference_image: tex.png\ncamera: cam.yaml\n") + kPose +
+      "pattern_region: [[-10.5, -10.5], [409.5, -10.5], [409.5, 309.5], [-10.5, 309.5]]\n"));
+  ASSERT_TRUE(m.has3d());
+  EXPECT_NEAR((m.corners_px[0] - Eigen::Vector2d(-10.5, -10.5)).norm(), 0, 1e-12);
+  // f = 1000 px at 0.5 m: 0.5 mm per px; the corner 210 px left of the principal point 199.5.
+  EXPECT_NEAR((m.target->corners_o[0] - Eigen::Vector3d(-0.105, -0.08, 0)).norm(), 0, 1e-12);
+  EXPECT_NEAR((m.target->corners_o[2] - Eigen::Vector3d(0.105, 0.08, 0)).norm(), 0, 1e-12);
+  // Mostly outside, a corner inside: accepted too.
+  EXPECT_EQ(loadError("corner.yaml", "reference_image: tex.png\n"
+                                     "pattern_region: [[300, 200], [700, 200], [700, 600], [300, 600]]\n"), "");
+  // Touching the image along a pixel edge only: nothing inside, a one-line error.
+  const std::string msg = loadError("beside.yaml", "reference_image: tex.png\n"
+                                    "pattern_region: [[399.5, 0], [500, 0], [500, 100], [399.5, 100]]\n");
+  EXPECT_NE(msg.find("beside.yaml: pattern_region: polygon lies outside the 400x300 image"), std::string::npos) << msg;
+}
+
 TEST_F(ObjectFile, BadInputsGiveOneLineErrorsNamingFileAndField) {
   struct Case {
     std::string name, yaml, field;
@@ -121,7 +141,7 @@ TEST_F(ObjectFile, BadInputsGiveOneLineErrorsNamingFileAndField) {
       {"region_two.yaml", base + "pattern_region: [[0, 0], [10, 10]]\n", "pattern_region"},
       {"region_cross.yaml", base + "pattern_region: [[0, 0], [100, 100], [100, 0], [0, 100]]\n",
        "pattern_region"},
-      {"region_outside.yaml", base + "pattern_region: [[0, 0], [500, 0], [100, 100]]\n", "pattern_region"},
+      {"region_outside.yaml", base + "pattern_region: [[450, 0], [600, 0], [500, 100]]\n", "pattern_region"},
       {"region_nan.yaml", base + "pattern_region: [[0, 0], [.nan, 0], [100, 100]]\n", "pattern_region[1]"},
       {"region_shape.yaml", base + "pattern_region: [[0, 0, 1], [10, 0], [10, 10]]\n", "pattern_region[0]"},
       {"region_text.yaml", base + "pattern_region: [[0, 0], [a, 0], [10, 10]]\n", "pattern_region[1]"},

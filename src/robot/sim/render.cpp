@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
+#include "core/geometry.h"
 #include "core/error.h"
 
 namespace refgrasp::sim {
@@ -160,13 +161,7 @@ struct Edge {
 };
 
 std::vector<Edge> polygonEdges(const Poly2& poly, const cv::Rect& roi) {
-  double area2 = 0;
-  for (size_t i = 0; i < poly.size(); ++i) {
-    const auto& a = poly[i];
-    const auto& b = poly[(i + 1) % poly.size()];
-    area2 += a.x() * b.y() - a.y() * b.x();
-  }
-  const double orient = area2 >= 0 ? 1.0 : -1.0;
+  const double orient = shoelace2(poly.data(), poly.size()) >= 0 ? 1.0 : -1.0;
   std::vector<Edge> edges;
   for (size_t i = 0; i < poly.size(); ++i) {
     const Eigen::Vector2d a = poly[i] - Eigen::Vector2d(roi.x, roi.y);

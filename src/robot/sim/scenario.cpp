@@ -43,11 +43,7 @@ class Reader {
   const YamlFile& file() const { return f_; }
 
   void onlyKeys(const YAML::Node& node, const std::string& where, const std::set<std::string>& keys) const {
-    if (!node.IsMap()) f_.fail(where, "expected a mapping");
-    for (const auto& kv : node) {
-      const std::string k = kv.first.as<std::string>();
-      if (!keys.count(k)) f_.fail(join(where, k), "unknown field");
-    }
+    f_.onlyKeys(node, where, keys);
   }
 
   YAML::Node section(const YAML::Node& node, const std::string& key, const std::string& where) const {

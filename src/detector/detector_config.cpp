@@ -1,0 +1,149 @@
+#include "detector/detector_config.h"
+
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <set>
+#include <type_traits>
+
+#include "core/error.h"
+#include "core/yaml.h"
+
+namespace refgrasp::detector {
+namespace {
+
+// Every field of DetectorOptions, by its name in the file. O = (const) DetectorOptions.
+template <class O, class Visit>
+void visitFields(O& o, Visit&& v) {
+  v("sift.max_features", o.sift.max_features);
+  v("sift.octave_layers", o.sift.octave_layers);
+  v("sift.contrast_threshold", o.sift.contrast_threshold);
+  v("sift.edge_threshold", o.sift.edge_threshold);
+  v("sift.sigma", o.sift.sigma);
+  v("sift.upsample", o.sift.upsample);
+  v("match.matcher", o.match.matcher);
+  v("match.global_ratio", o.match.global_ratio);
+  v("match.local_ratio", o.match.local_ratio);
+  v("match.search_radius_factor", o.match.search_radius_factor);
+  v("match.orientation_tolerance_rad", o.match.orientation_tolerance_rad);
+  v("match.scale_tolerance", o.match.scale_tolerance);
+  v("match.max_hypotheses", o.match.max_hypotheses);
+  v("match.max_reference_features", o.match.max_reference_features);
+  v("match.min_inliers", o.match.min_inliers);
+  v("match.ransac_reproj_px", o.match.ransac_reproj_px);
+  v("match.max_instances", o.match.max_instances);
+  v("match.max_descriptor_distance", o.match.max_descriptor_distance);
+  v("match.min_inlier_spread", o.match.min_inlier_spread);
+  v("match.seed", o.match.seed);
+  v("pose", o.pose);
+  v("pose_options.paper_lm_iterations", o.pose_options.paper_lm_iterations);
+  v("pose_options.refined_lm_iterations", o.pose_options.refined_lm_iterations);
+  v("pose_options.huber_px", o.pose_options.huber_px);
+  v("pose_options.keypoint_sigma_per_size", o.pose_options.keypoint_sigma_per_size);
+  v("pose_options.min_corner_depth_m", o.pose_options.min_corner_depth_m);
+  v("dense.enabled", o.dense.enabled);
+  v("dense.max_iterations", o.dense.max_iterations);
+  v("dense.epsilon", o.dense.epsilon);
+  v("dense.max_template_px", o.dense.max_template_px);
+  v("dense.max_corner_shift_px", o.dense.max_corner_shift_px);
+  v("dense.min_correlation", o.dense.min_correlation);
+  v("dense.gauss_filter_size", o.dense.gauss_filter_size);
+  v("dense.pose_grid", o.dense.pose_grid);
+  v("sanity.min_distance_m", o.sanity.min_distance_m);
+  v("sanity.max_distance_m", o.sanity.max_distance_m);
+  v("sanity.min_area_px2", o.sanity.min_area_px2);
+  v("sanity.max_area_fraction", o.sanity.max_area_fraction);
+}
+
+// check() names fields "<Options>.<field>"; the file names them "<section>.<field>".
+const std::map<std::string, std::string> kSectionOf = {
+    {"SiftOptions", "sift"},          {"MatchOptions", "match"},
+    {"PoseOptions", "pose_options"},  {"DenseRefineOptions", "dense"},
+    {"SanityOptions", "sanity"}};
+
+const char* name(MatcherType m) { return m == MatcherType::kRatio ? "ratio" : "paper"; }
+
+}  // namespace
+
+DetectorOptions loadDetectorOptions(const std::string& path) {
+  const YamlFile f(path);
+  DetectorOptions opt;
+  // Known fields, per section ("" = top level).
+  std::map<std::string, std::set<std::string>> known;
+  visitFields(opt, [&](const std::string& field, auto&) {
+    const size_t dot = field.find('.');
+    if (dot == std::string::npos) {
+      known[""].insert(field);
+    } else {
+      known[""].insert(field.substr(0, dot));
+      known[field.substr(0, dot)].insert(field.substr(dot + 1));
+    }
+  });
+  f.onlyKeys(f.root(), "", known[""]);
+  for (const auto& [section, keys] : known)
+    if (!section.empty() && f.has(f.root(), section)) f.onlyKeys(f.get(f.root(), section), section, keys);
+
+  visitFields(opt, [&](const std::string& field, auto& value) {
+    using T = std::decay_t<decltype(value)>;
+    const YAML::Node node = f.get(f.root(), field);
+    if (!node.IsDefined()) return;  // not in the file: the default
+    if (node.IsNull()) f.fail(field, "no value");
+    if constexpr (std::is_same_v<T, bool>) {
+      value = f.boolean(f.root(), field, value);
+    } else if constexpr (std::is_same_v<T, int>) {
+      value = f.integer(f.root(), field);
+    } else if constexpr (std::is_same_v<T, uint64_t>) {
+      const double v = f.number(f.root(), field);
+      if (v < 0 || v != std::floor(v) || v > 9007199254740992.0)
+        f.fail(field, "expected an integer in [0, 2^53]");
+      value = static_cast<uint64_t>(v);
+    } else if constexpr (std::is_same_v<T, double>) {
+      value = f.number(f.root(), field);
+    } else if constexpr (std::is_same_v<T, MatcherType>) {
+      const std::string s = f.string(f.root(), field);
+      if (s != "paper" && s != "ratio") f.fail(field, "expected paper or ratio, got '" + s + "'");
+      value = s == "ratio" ? MatcherType::kRatio : MatcherType::kPaper;
+    } else {
+      static_assert(std::is_same_v<T, PoseMethod>);
+      const std::string s = f.string(f.root(), field);
+      if (s != "paper" && s != "refined") f.fail(field, "expected paper or refined, got '" + s + "'");
+      value = s == "paper" ? PoseMethod::kPaper : PoseMethod::kRefined;
+    }
+  });
+
+  try {
+    opt.check();
+  } catch (const std::invalid_argument& e) {
+    // "<Options>.<field>: <problem>" -> "<file>: <section>.<field>: <problem>"
+    const std::string what = e.what();
+    const size_t dot = what.find('.'), colon = what.find(": ");
+    if (dot != std::string::npos && colon != std::string::npos && dot < colon &&
+        kSectionOf.count(what.substr(0, dot)))
+      f.fail(kSectionOf.at(what.substr(0, dot)) + what.substr(dot, colon - dot), what.substr(colon + 2));
+    throw ConfigError(path, what);
+  }
+  return opt;
+}
+
+std::vector<std::pair<std::string, std::string>> detectorOptionValues(const DetectorOptions& opt) {
+  std::vector<std::pair<std::string, std::string>> out;
+  visitFields(opt, [&](const std::string& field, const auto& value) {
+    using T = std::decay_t<decltype(value)>;
+    char buf[64];
+    if constexpr (std::is_same_v<T, bool>) {
+      out.emplace_back(field, value ? "true" : "false");
+    } else if constexpr (std::is_same_v<T, int> || std::is_same_v<T, uint64_t>) {
+      out.emplace_back(field, std::to_string(value));
+    } else if constexpr (std::is_same_v<T, double>) {
+      std::snprintf(buf, sizeof buf, "%.17g", value);
+      out.emplace_back(field, buf);
+    } else if constexpr (std::is_same_v<T, MatcherType>) {
+      out.emplace_back(field, name(value));
+    } else {
+      out.emplace_back(field, poseMethodName(value));
+    }
+  });
+  return out;
+}
+
+}  // namespace refgrasp::detector

@@ -1,0 +1,42 @@
+#pragma once
+// The reference side of matching, built once per object (paper III-B): the reference features
+// inside the pattern polygon (capped), the pattern geometry, each feature's nearest reference
+// neighbours (for the local search) and the integer descriptors for the global 2-NN.
+//
+// Frames: reference px, pixels of the reference image (possibly undistorted by the caller).
+#include <Eigen/Core>
+#include <vector>
+
+#include "detector/features.h"
+#include "detector/knn.h"
+
+namespace refgrasp::detector {
+
+struct MatchOptions;  // detector/matching.h
+
+struct ReferenceIndex {
+  Features features;                          ///< kept reference features (indices used below)
+  std::vector<Eigen::Vector2d> polygon_px;    ///< pattern polygon, reference px
+  std::vector<Eigen::Vector2d> hull_px;       ///< its convex hull (used for plausibility/overlap)
+  Eigen::Vector2d centre_px = Eigen::Vector2d::Zero();  ///< pattern centre c_r (polygon centroid)
+  double diagonal_px = 0;                     ///< diagonal of the polygon's bounding box
+  double feature_hull_area_px2 = 0;           ///< area of the convex hull of the kept features
+  std::vector<std::vector<int>> neighbours;   ///< per feature: nearest features (reference px), self first
+  IntegerDescriptors descriptors;             ///< features.descriptors for the kernels (byte split)
+};
+
+/// Keeps features inside the polygon (>= 3 vertices; empty = whole image), then at most
+/// opt.max_reference_features: strongest first within each octave, taken round robin over the
+/// octaves (so coarse features, the only ones left on far objects, survive the cap); the result
+/// is ordered strongest first. Keypoint .pt may already be undistorted by the caller.
+/// Throws std::invalid_argument for nonsense options or a degenerate polygon.
+ReferenceIndex buildReferenceIndex(Features ref_features,
+                                   const std::vector<Eigen::Vector2d>& pattern_polygon_px,
+                                   const MatchOptions& opt);
+
+/// Global 2-NN of every scene feature among the reference features (indices into
+/// ref.features); multithreaded, exact.
+std::vector<NearestTwo> nearestTwo(const ReferenceIndex& ref, const Features& scene,
+                                   KnnKernel kernel = KnnKernel::kAuto);
+
+}  // namespace refgrasp::detector
