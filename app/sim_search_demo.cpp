@@ -137,6 +137,8 @@ int run(const DemoOptions& o) {
       const Intrinsics& rc = robot->camera().rig().right;
       cv::imwrite(o.out + "/found_left.png", annotate(frame.left, s.left, lc, "left: " + summary));
       cv::imwrite(o.out + "/found_right.png", annotate(frame.right, s.right, rc, "right"));
+      cv::imwrite(o.out + "/frame_left.png", frame.left);  // as captured, for other tools
+      cv::imwrite(o.out + "/frame_right.png", frame.right);
       exit_code = 0;
     } else {
       char name[64];
@@ -162,7 +164,8 @@ int main(int argc, char** argv) {
       "Simulated search demo: the simulated enon sweeps its head (then turns its base) until the\n"
       "detector finds the scenario's target in its Bumblebee2 stereo pair; prints the fused pose\n"
       "and its error against the simulator's ground truth; writes found_left.png, found_right.png\n"
-      "(annotated), look_NN_left.png and looks.jsonl to --out. Exit 0 when found, 1 when not,\n"
+      "(annotated), frame_left.png, frame_right.png (the pair as captured), look_NN_left.png and\n"
+      "looks.jsonl to --out. Exit 0 when found, 1 when not,\n"
       "2/3 on a robot error (the robot is stopped first), 4 on a bad file."};
   DemoOptions o;
   app.add_option("--enon", o.enon, "robot model YAML")->capture_default_str();

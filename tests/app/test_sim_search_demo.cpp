@@ -45,6 +45,11 @@ json lastLook(const fs::path& out) {
   return last.empty() ? json() : json::parse(last);
 }
 
+// The target's object definition in each shipped scenario.
+std::string targetObject(const std::string& scenario) {
+  return scenario == "table_clutter" ? "tea_box" : "cereal_box";
+}
+
 void expectFoundAccurately(const std::string& scenario, int max_looks) {
   const fs::path out = refgrasp::testing::tempDir("refgrasp_search_" + scenario);
   const AppRun r = runApp("sim_search_demo", "--enon " + kSource + "/config/enon.yaml --scenario " +
@@ -68,6 +73,14 @@ void expectFoundAccurately(const std::string& scenario, int max_looks) {
   const cv::Mat pic = cv::imread((out / "found_left.png").string());
   EXPECT_EQ(pic.cols, 640);
   EXPECT_EQ(pic.rows, 480);
+  // README's detect_object example runs on the frame as captured.
+  const AppRun d = runApp("detect_object", "--object " + kSource + "/config/objects/" +
+                                               targetObject(scenario) + ".yaml --camera " + kSource +
+                                               "/config/cameras/bb2_left.yaml " +
+                                               (out / "frame_left.png").string());
+  ASSERT_EQ(d.status, 0) << d.err;
+  const json line = json::parse(d.out);
+  EXPECT_EQ(line["found"], look["left_found"]) << d.out;
 }
 
 }  // namespace
