@@ -4,7 +4,8 @@ set -euo pipefail
 PKGS=(build-essential cmake pkg-config
       libopencv-dev libvisp-dev libeigen3-dev libdc1394-dev
       libgtest-dev libgmock-dev libbenchmark-dev
-      libyaml-cpp-dev nlohmann-json3-dev libcli11-dev)
+      libyaml-cpp-dev nlohmann-json3-dev libcli11-dev
+      cyclonedds-dev cyclonedds-tools)
 missing=()
 for p in "${PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -8,7 +8,7 @@ violation() { echo "layout: $1"; fail=1; }
 
 # The HAL knows no backend: no backend namespace or header in src/robot/*.{h,cpp}
 # (backends.cpp, the registry of built-in backends, is its own library).
-hits=$(grep -ln "namespace refgrasp::sim" src/robot/*.h 2>/dev/null)
+hits=$(grep -lnE "namespace refgrasp::(sim|dds)" src/robot/*.h 2>/dev/null)
 [ -z "$hits" ] || violation "backend namespace in HAL headers: $hits"
 for f in src/robot/*.h src/robot/*.cpp; do
   [ "$(basename "$f")" = backends.cpp ] && continue
@@ -20,6 +20,9 @@ for d in src/robot/*/; do
   grep -HnE "#include \"robot/[a-z0-9_]+/" "$d"*.h "$d"*.cpp 2>/dev/null | grep -v "\"robot/$b/" &&
     violation "backend $b includes another backend"
 done
+# A backend knows the HAL and core only: never the detector or servo.
+grep -HnE '#include [<"](detector|servo)/' src/robot/*/*.h src/robot/*/*.cpp 2>/dev/null &&
+  violation "a robot backend includes the detector or servo"
 # core depends on nothing of ours; detector never on ViSP, robot or servo; servo never on a backend.
 grep -HnE '#include "(detector|servo|robot)/' src/core/* && violation "core includes another module"
 grep -HnE '#include [<"]visp3?/|#include "(servo|robot)/' src/detector/* && violation "detector includes ViSP, servo or robot"

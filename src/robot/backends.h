@@ -1,6 +1,7 @@
 #pragma once
 // Registers every robot backend this build has (target refgrasp_robot_backends, which links each
-// backend library): "sim" now. Apps call it once before robot::makeRobot (robot/backend.h).
+// backend library): "sim" (the simulated enon) and "dds" (a robot driver on the DDS bus). Apps
+// call it once before robot::makeRobot (robot/backend.h).
 namespace refgrasp::robot {
 
 /// Idempotent.
