@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <mutex>
 #include <thread>
 
 #include "core/error.h"
@@ -189,6 +190,7 @@ struct RobotDriverNode::Impl {
   Writer<msg::CameraInfo> left_info, right_info;
 
   robot::RobotState state;
+  mutable std::mutex stats_mu;  ///< guards stats (read by other threads)
   DriverNodeStats stats;
   double base_v = 0, base_w = 0;
   robot::HeadMode head_mode = robot::HeadMode::kVelocity;
@@ -218,6 +220,7 @@ ReturnType RobotDriverNode::start() {
 ReturnType RobotDriverNode::step(Seconds time) {
   Impl& p = *p_;
   if (!p.started) return ReturnType::kError;
+  std::lock_guard<std::mutex> lock(p.stats_mu);
   const Seconds period = std::max(0.0, time - p.last_time);
   p.last_time = time;
   ++p.stats.steps;
@@ -256,7 +259,10 @@ void RobotDriverNode::stop(Seconds time) {
   p.started = false;
 }
 
-const DriverNodeStats& RobotDriverNode::stats() const { return p_->stats; }
+DriverNodeStats RobotDriverNode::stats() const {
+  std::lock_guard<std::mutex> lock(p_->stats_mu);
+  return p_->stats;
+}
 const robot::RobotState& RobotDriverNode::state() const { return p_->state; }
 
 ReturnType runRealTime(RobotDriverNode& node, double period_s, const std::atomic<bool>& stop,

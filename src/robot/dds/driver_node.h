@@ -50,7 +50,8 @@ class RobotDriverNode {
   /// Zero command, then deactivate().
   void stop(Seconds time);
 
-  const DriverNodeStats& stats() const;
+  /// A snapshot (thread-safe: a test or a monitor may poll it while another thread steps).
+  DriverNodeStats stats() const;
   const robot::RobotState& state() const;  ///< as last read from the hardware
 
  private:
