@@ -1,0 +1,77 @@
+#pragma once
+// The interoperable vision component (the paper's RT component, on DDS): refgrasp's detector
+// behind ROS 2 topics and a service, so a ROS 2 node (rmw_cyclonedds) talks to it with no bridge.
+// ROS names under the namespace `ns` (DDS topic "rt" + name; robot/dds/transport.h):
+//
+//   in   <ns>/image_raw, <ns>/camera_info        sensor_msgs Image / CameraInfo (best effort,
+//        (stereo: <ns>/left/..., <ns>/right/...)  keep last 1); the pair of a stereo frame has
+//                                                 equal stamps
+//   out  <ns>/object_pose   geometry_msgs/PoseStamped: cMo of the FIRST object, when found
+//        <ns>/detections    vision_msgs/Detection3DArray (4.x), every instance found
+//        <ns>/object_info   refgrasp_msgs/ObjectInfo, one per object per frame (found or not)
+//                           all reliable, keep last 10; header = the image's (stamp, optical frame)
+//   srv  <ns>/detect        refgrasp_msgs/srv/Detect: timeout_s = 0 gives the latest result,
+//                           > 0 waits up to that long for the result of the next frame
+//
+// Throughput: the detector always works on the newest frame; frames that arrive while it works
+// replace each other and are dropped, never queued (ComponentStats::dropped counts them).
+// Bad input (unsupported encoding, data size != height x step, step < width x bytes per pixel,
+// no camera_info, camera_info of another size or frame) never stops it: one rate-limited
+// warning per kind, found = false for that frame on object_info and in the service, and it
+// keeps serving. Poses are cMo (object frame in the camera's optical frame, REP 103: x right,
+// y down, z forward), metres; in stereo mode in the LEFT camera frame.
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/camera.h"
+#include "detector/detector.h"
+
+namespace refgrasp::component {
+
+struct VisionComponentOptions {
+  int domain = 0;              ///< DDS domain id, [0, 232]
+  std::string ns = "/refgrasp";
+  /// Stereo mode: pair <ns>/left and <ns>/right by stamp and fuse; the intrinsics still come from
+  /// camera_info, the right eye's pose in the left frame (lMr) from this rig.
+  std::optional<StereoRig> stereo;
+  double warning_period_s = 5.0;  ///< at most one warning per kind of problem per period
+  /// Throws std::invalid_argument "VisionComponentOptions.<field>: <problem>".
+  void check() const;
+};
+
+/// A snapshot of what the component did.
+struct ComponentStats {
+  long received = 0;   ///< frames taken from DDS (stereo: pairs formed)
+  long processed = 0;  ///< frames the detector ran on
+  long dropped = 0;    ///< frames a newer one replaced before the detector got to them
+  long rejected = 0;   ///< frames that could not be used (bad input): found = false
+  long unpaired = 0;   ///< stereo: images whose partner (same stamp) never came
+  long requests = 0;   ///< detect calls received
+  double detect_ms_median = 0;    ///< the detector alone, per processed frame
+  double overhead_ms_median = 0;  ///< frame taken from DDS -> results written, minus the detector
+};
+
+class VisionComponent {
+ public:
+  using WarningSink = std::function<void(const std::string&)>;
+  /// Takes a detector with its objects added (all with a reference pose). Creates the DDS
+  /// endpoints (throws dds::DdsError, std::invalid_argument) and starts serving at once.
+  VisionComponent(detector::Detector detector, const VisionComponentOptions& options,
+                  WarningSink warn = {});
+  ~VisionComponent();
+  VisionComponent(const VisionComponent&) = delete;
+  VisionComponent& operator=(const VisionComponent&) = delete;
+
+  /// Stops the threads and deletes the endpoints' activity (idempotent; the destructor calls it).
+  void stop();
+  ComponentStats stats() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> p_;
+};
+
+}  // namespace refgrasp::component
