@@ -59,12 +59,8 @@ int runVisionComponent(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 2;
   }
-  if (const std::string p = dds::rosNameProblem(ns, true); !p.empty()) {
-    std::fprintf(stderr, "vision_component: --ns: %s\n", p.c_str());
-    return 2;
-  }
-  if (domain < 0 || domain > dds::kMaxDomainId) {
-    std::fprintf(stderr, "vision_component: --domain: %d not in [0, %d]\n", domain, dds::kMaxDomainId);
+  if (const std::string p = dds::domainOrNamespaceProblem(domain, ns); !p.empty()) {
+    std::fprintf(stderr, "vision_component: %s\n", p.c_str());
     return 2;
   }
   VisionComponentOptions opt;
@@ -108,6 +104,7 @@ int runVisionComponent(int argc, char** argv) {
   j["frames_unpaired"] = s.unpaired;
   j["detect_requests"] = s.requests;
   j["detect_ms_median"] = s.detect_ms_median;
+  j["queue_ms_median"] = s.queue_ms_median;
   j["overhead_ms_median"] = s.overhead_ms_median;
   std::printf("%s\n", j.dump().c_str());
   return 0;

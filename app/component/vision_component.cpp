@@ -56,7 +56,8 @@ struct Job {
   long seq = 0;
   ImagePtr image[2];
   InfoPtr info[2];
-  double received_at = 0;  // steady clock
+  double received_at = 0;  // steady clock: taken from DDS
+  double queued_at = 0;    // put into the slot
 };
 
 /// The newest answer for one object.
@@ -150,7 +151,7 @@ struct VisionComponent::Impl {
   }
 
   void enqueue(Job job) {
-    job.received_at = steadyNow();
+    job.queued_at = steadyNow();
     std::lock_guard<std::mutex> lock(stats_mu);
     job.seq = ++st.received;
     if (slot.put(std::move(job))) ++st.dropped;
@@ -166,6 +167,7 @@ struct VisionComponent::Impl {
       st.dropped += static_cast<long>(all.size()) - 1;
     }
     Job j;
+    j.received_at = steadyNow();
     j.image[0] = std::make_shared<Sample<msg::Image>>(std::move(all.back()));
     j.info[0] = eyes[0].latest_info;
     enqueue(std::move(j));
@@ -183,6 +185,7 @@ struct VisionComponent::Impl {
       if (eyes[1].waiting.count(t)) best = std::max(best, t);
     if (best != INT64_MIN) {
       Job j;
+      j.received_at = steadyNow();
       for (size_t e = 0; e < 2; ++e) {
         j.image[e] = eyes[e].waiting[best];
         j.info[e] = eyes[e].latest_info;
@@ -332,7 +335,7 @@ struct VisionComponent::Impl {
   void workLoop() {
     while (!stopping) {
       std::optional<Job> job = slot.take(0.2);
-      if (job) process(*job);
+      if (job) process(*job, steadyNow());
     }
   }
 
@@ -360,7 +363,8 @@ struct VisionComponent::Impl {
     return "";
   }
 
-  void process(const Job& job) {
+  /// \param taken_at when the detector thread took the job from the slot (steady clock).
+  void process(const Job& job, double taken_at) {
     dds::GrayImage gray[2];
     Intrinsics cam[2];
     const msg::Header& header = (**job.image[0]).header;
@@ -419,10 +423,12 @@ struct VisionComponent::Impl {
       std::lock_guard<std::mutex> lock(stats_mu);
       if (problem.empty()) {
         ++st.processed;
+        const double queue = taken_at - job.queued_at;
         detect_ms.push_back((t1 - t0) * 1e3);
-        overhead_ms.push_back(((t2 - job.received_at) - (t1 - t0)) * 1e3);
-        if (detect_ms.size() > 2000) detect_ms.pop_front();
-        if (overhead_ms.size() > 2000) overhead_ms.pop_front();
+        queue_ms.push_back(queue * 1e3);
+        overhead_ms.push_back(((t2 - job.received_at) - (t1 - t0) - queue) * 1e3);
+        for (auto* v : {&detect_ms, &queue_ms, &overhead_ms})
+          if (v->size() > 2000) v->pop_front();
       } else {
         ++st.rejected;
       }
@@ -497,7 +503,7 @@ struct VisionComponent::Impl {
 
   mutable std::mutex stats_mu;
   ComponentStats st;
-  std::deque<double> detect_ms, overhead_ms;
+  std::deque<double> detect_ms, queue_ms, overhead_ms;
 
   std::atomic<bool> stopping{false};
   std::thread rx, worker;
@@ -519,6 +525,7 @@ ComponentStats VisionComponent::stats() const {
   std::lock_guard<std::mutex> lock(p_->stats_mu);
   ComponentStats s = p_->st;
   s.detect_ms_median = median(p_->detect_ms);
+  s.queue_ms_median = median(p_->queue_ms);
   s.overhead_ms_median = median(p_->overhead_ms);
   return s;
 }

@@ -51,7 +51,11 @@ struct ComponentStats {
   long unpaired = 0;   ///< stereo: images whose partner (same stamp) never came
   long requests = 0;   ///< detect calls received
   double detect_ms_median = 0;    ///< the detector alone, per processed frame
-  double overhead_ms_median = 0;  ///< frame taken from DDS -> results written, minus the detector
+  /// Waiting for the detector to finish the previous frame (0 when frames come slower than it).
+  double queue_ms_median = 0;
+  /// The component's own work per frame: taking it from DDS, checks and conversion, writing the
+  /// results (frame taken from DDS -> results written, minus the wait and the detector).
+  double overhead_ms_median = 0;
 };
 
 class VisionComponent {

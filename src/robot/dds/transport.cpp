@@ -42,6 +42,13 @@ std::string joinRosName(const std::string& ns, const std::string& relative) {
   return ns + "/" + relative;
 }
 
+std::string domainOrNamespaceProblem(int domain, const std::string& ns) {
+  if (domain < 0 || domain > kMaxDomainId)
+    return "--domain: " + std::to_string(domain) + " not in [0, " + std::to_string(kMaxDomainId) + "]";
+  const std::string p = rosNameProblem(ns, true);
+  return p.empty() ? "" : "--ns: " + p;
+}
+
 void checkDomainAndNamespace(int domain, const std::string& ns, const std::string& options) {
   refgrasp::check(domain >= 0 && domain <= kMaxDomainId, options + ".domain",
                   "must be in [0, " + std::to_string(kMaxDomainId) + "]");

@@ -39,6 +39,8 @@ dds_return_t checkRc(dds_return_t rc, const std::string& what);
 std::string rosNameProblem(const std::string& name, bool is_namespace = false);
 /// "/refgrasp" + "image_raw" -> "/refgrasp/image_raw"; "/" + "x" -> "/x".
 std::string joinRosName(const std::string& ns, const std::string& relative);
+/// For command lines: "--domain: 300 not in [0, 232]" or "--ns: <problem>", empty when both are fine.
+std::string domainOrNamespaceProblem(int domain, const std::string& ns);
 /// Throws std::invalid_argument "<options>.domain: ..." / "<options>.ns: ..." (Options::check()).
 void checkDomainAndNamespace(int domain, const std::string& ns, const std::string& options);
 /// rmw_cyclonedds: "rt" + ROS topic.
