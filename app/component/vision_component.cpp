@@ -429,6 +429,9 @@ struct VisionComponent::Impl {
         overhead_ms.push_back(((t2 - job.received_at) - (t1 - t0) - queue) * 1e3);
         for (auto* v : {&detect_ms, &queue_ms, &overhead_ms})
           if (v->size() > 2000) v->pop_front();
+        st.last_detect_ms = detect_ms.back();
+        st.last_queue_ms = queue_ms.back();
+        st.last_overhead_ms = overhead_ms.back();
       } else {
         ++st.rejected;
       }

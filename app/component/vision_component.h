@@ -56,6 +56,8 @@ struct ComponentStats {
   /// The component's own work per frame: taking it from DDS, checks and conversion, writing the
   /// results (frame taken from DDS -> results written, minus the wait and the detector).
   double overhead_ms_median = 0;
+  /// The same three for the last processed frame (ms).
+  double last_detect_ms = 0, last_queue_ms = 0, last_overhead_ms = 0;
 };
 
 class VisionComponent {
