@@ -358,7 +358,7 @@ TEST(SimEnon, FactoryBuildsTheSimBackendAndRejectsUnknownOnes) {
   } catch (const ConfigError& e) {
     EXPECT_NE(std::string(e.what()).find("backend: unknown backend 'ros2'"), std::string::npos);
     EXPECT_NE(std::string(e.what()).find(m.path), std::string::npos) << e.what();
-    EXPECT_NE(std::string(e.what()).find("available: sim"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("(available: dds, sim)"), std::string::npos) << e.what();
   }
   try {
     makeRobot(m, {"sim", {{"scenario", "/nonexistent/scenario.yaml"}}, "test"});
