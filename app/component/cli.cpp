@@ -12,6 +12,7 @@
 #include "component/vision_component.h"
 #include "core/error.h"
 #include "detector/detector.h"
+#include "detector/detector_config.h"
 #include "robot/dds/transport.h"
 
 namespace refgrasp::component {
@@ -30,6 +31,7 @@ Topics (ROS names; on DDS "rt" + name):
                          translation, error}; timeout_s 0: the latest result, > 0: the next frame's
 The detector works on the newest frame; frames arriving meanwhile are dropped (counted).
 Bad frames give one warning (rate-limited) on stderr and found = false; serving goes on.
+Detector options: --detector-config FILE (config/detector.yaml lists every field).
 Stops on SIGINT/SIGTERM and prints {"frames_received",...} as one JSON line on stdout.
 Cyclone DDS reads its configuration from CYCLONEDDS_URI (config/dds/cyclonedds_loopback.xml
 for one machine). Exit status: 0 clean shutdown; 2 bad options or files; 3 DDS failure.)";
@@ -42,7 +44,7 @@ extern "C" void onSignal(int) { g_stop = true; }
 int runVisionComponent(int argc, char** argv) {
   CLI::App app(kDescription, "vision_component");
   std::vector<std::string> object_files;
-  std::string ns = "/refgrasp", rig_file;
+  std::string ns = "/refgrasp", rig_file, detector_config;
   int domain = 0;
   if (const char* d = std::getenv("ROS_DOMAIN_ID"); d && *d) domain = std::atoi(d);
   app.add_option("--object", object_files, "object definition YAML (repeat for several objects)")
@@ -54,6 +56,8 @@ int runVisionComponent(int argc, char** argv) {
   app.add_option("--stereo", rig_file,
                  "stereo rig YAML: pair <ns>/left and <ns>/right by stamp and fuse (the rig gives "
                  "right_in_left; intrinsics come from camera_info)");
+  app.add_option("--detector-config", detector_config,
+                 "detector options YAML (every field: config/detector.yaml); default: built-in");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -68,6 +72,7 @@ int runVisionComponent(int argc, char** argv) {
   opt.ns = ns;
   detector::Detector det;
   try {
+    if (!detector_config.empty()) det = detector::Detector(detector::loadDetectorOptions(detector_config));
     if (!rig_file.empty()) opt.stereo = loadStereoRig(rig_file);
     std::set<std::string> names;
     for (const auto& f : object_files) {

@@ -363,6 +363,11 @@ struct VisionComponent::Impl {
     return "";
   }
 
+  /// The image's capture stamp (its header, the camera's clock) and the component's frame counter.
+  static FrameStamp frameStamp(const Job& job) {
+    return {dds::fromRosTime((**job.image[0]).header.stamp), job.seq};
+  }
+
   /// \param taken_at when the detector thread took the job from the slot (steady clock).
   void process(const Job& job, double taken_at) {
     dds::GrayImage gray[2];
@@ -378,7 +383,7 @@ struct VisionComponent::Impl {
     if (problem.empty()) {
       // The one place the detector runs.
       if (eyes.size() == 1) {
-        const detector::DetectionResult r = det.detect(gray[0].gray, cam[0]);
+        const detector::DetectionResult r = det.detect(gray[0].gray, cam[0], frameStamp(job));
         if (!r.ok) problem = eyes[0].image_topic + ": " + r.error;
         for (const auto& d : r.detections) {
           if (!d.found || !d.cMo) continue;
@@ -392,7 +397,8 @@ struct VisionComponent::Impl {
         }
       } else {
         const StereoRig rig{cam[0], cam[1], opt.stereo->lMr};
-        const detector::StereoDetectionResult r = det.detectStereo(gray[0].gray, gray[1].gray, rig);
+        const detector::StereoDetectionResult r =
+            det.detectStereo(gray[0].gray, gray[1].gray, rig, frameStamp(job));
         if (!r.ok) problem = eyes[0].image_topic + ": " + r.error;
         for (const auto& s : r.objects) {
           if (!s.fused.lMo) continue;

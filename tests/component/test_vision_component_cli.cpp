@@ -88,6 +88,14 @@ TEST_F(ComponentCli, HelpAndBadOptions) {
   std::tie(rc, err) = run(args({"--object", kObject, "--object", kObject}));
   EXPECT_EQ(rc, 2);
   EXPECT_NE(err.find("name: object name 'cereal_box' used twice"), std::string::npos) << err;
+  std::tie(rc, err) = run(args({"--object", kObject, "--detector-config", "/no/detector.yaml"}));
+  EXPECT_EQ(rc, 2);
+  EXPECT_NE(err.find("/no/detector.yaml"), std::string::npos) << err;
+  const auto bad_config = dir_ / "detector.yaml";
+  std::ofstream(bad_config) << "match:\n  min_inliers: 2\n";
+  std::tie(rc, err) = run(args({"--object", kObject, "--detector-config", bad_config.string()}));
+  EXPECT_EQ(rc, 2);
+  EXPECT_NE(err.find(bad_config.string() + ": match.min_inliers:"), std::string::npos) << err;
   // A 2D-only object (no reference_pose) cannot give poses.
   const auto flat = dir_ / "flat.yaml";
   std::ofstream(flat) << "reference_image: " << kSource << "/media/targets/cereal_box.png\n";
@@ -107,7 +115,9 @@ TEST_F(ComponentCli, DdsFailureIsExit3) {
 
 TEST_F(ComponentCli, SignalsStopItCleanly) {
   for (int sig : {SIGINT, SIGTERM}) {
-    Subprocess p(args({"--object", kObject}), dir_, "sig" + std::to_string(sig));
+    // (with the shipped detector options, which must be accepted)
+    Subprocess p(args({"--object", kObject, "--detector-config", kSource + "/config/detector.yaml"}), dir_,
+                 "sig" + std::to_string(sig));
     ASSERT_TRUE(waitServing(p, 30)) << p.err();
     p.signal(sig);
     EXPECT_EQ(p.wait(10), 0) << "signal " << sig << ": " << p.err();

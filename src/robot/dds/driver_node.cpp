@@ -214,6 +214,12 @@ ReturnType RobotDriverNode::start() {
   ReturnType r = p_->hw.configure();
   if (r == ReturnType::kOk) r = p_->hw.activate();
   p_->started = r == ReturnType::kOk;
+  if (p_->started && p_->cam) {
+    // A first frame now, before any state goes out: a camera's first grab may be slow (the
+    // simulator builds its render caches), and a control cycle must never wait for it.
+    std::optional<robot::StereoFrame> f;
+    if (p_->cam->grab(0, &f) == ReturnType::kOk && f) p_->publishFrame(*f);
+  }
   return r;
 }
 

@@ -43,7 +43,7 @@ class RobotDriverNode {
   RobotDriverNode(const RobotDriverNode&) = delete;
   RobotDriverNode& operator=(const RobotDriverNode&) = delete;
 
-  /// configure() + activate() of the hardware.
+  /// configure() + activate() of the hardware, then a first camera grab (at time 0).
   robot::ReturnType start();
   /// One control cycle at robot time `time` (seconds, increasing).
   robot::ReturnType step(Seconds time);
