@@ -18,7 +18,7 @@
  *   ros_probe [--domain N] call SERVICE OBJECT TIMEOUT_S [--wait S]
  *       a refgrasp_msgs/srv/Detect client: request header {guid = writer instance handle, seq = 1}
  *   ros_probe [--domain N] pub-twist TOPIC VX WZ [--count K] [--rate HZ]
- *       publishes geometry_msgs/Twist (reliable)
+ *       publishes geometry_msgs/Twist (reliable); prints {"sent":K,"first_to_last_s":T}
  * Exit 0 on success, 1 when nothing arrived in time, 2 on bad arguments or a DDS error. */
 #include <dds/dds.h>
 #include <dds/ddsi/ddsi_serdata.h>
@@ -807,6 +807,7 @@ static int cmd_pub_twist(dds_entity_t pp, const char *topic, double vx, double w
   dds_delete_qos(q);
   if (tp < 0 || w < 0) return 2;
   if (!wait_matched(w, 10)) return 1;
+  double first = 0, last = 0;
   for (int k = 0; k < count; k++) {
     wr m = wbegin();
     wf64(&m, vx); wf64(&m, 0); wf64(&m, 0);
@@ -814,8 +815,12 @@ static int cmd_pub_twist(dds_entity_t pp, const char *topic, double vx, double w
     int rc = write_raw(w, &m);
     free(m.b);
     if (rc) return 2;
-    dds_sleepfor((dds_duration_t)(1e9 / rate));
+    last = now_s();
+    if (k == 0) first = last;
+    if (k + 1 < count) dds_sleepfor((dds_duration_t)(1e9 / rate));
   }
+  /* how long the commands really spanned (a loaded machine stretches the sleeps) */
+  printf("{\"sent\":%d,\"first_to_last_s\":%.6f}\n", count, last - first);
   return 0;
 }
 

@@ -273,8 +273,9 @@ TEST_F(DdsRobot, SilentControllerStopsTheRobot) {
   std::this_thread::sleep_for(std::chrono::milliseconds(500));
   const double x2 = x();
   EXPECT_NEAR(x2, x1, 1e-9) << "the robot kept moving after its controller went silent";
-  // It went on for at most the watchdog period (plus a state period) after the last command.
-  EXPECT_LT(x1 - x0, 0.3 * (bus.model().watchdog_period_s + 0.05));
+  // It went on for about the watchdog period after the last command (x0 may lag behind by the
+  // odometry's transport and a loaded machine's scheduling: 0.15 s of slack).
+  EXPECT_LT(x1 - x0, 0.3 * (bus.model().watchdog_period_s + 0.15));
 }
 
 TEST_F(DdsRobot, StereoFramesArePairedAndOnTheCallersClock) {
@@ -298,7 +299,7 @@ TEST_F(DdsRobot, StereoFramesArePairedAndOnTheCallersClock) {
     if (f && ++seen > 1) {  // the first frame waits for the renderer's caches: skip it
       // Captured in the past, recently (rendering and transport; slack for a loaded machine).
       EXPECT_LT(f->stamp, clock() + 0.01);
-      EXPECT_GT(f->stamp, clock() - 0.3) << "frame stamp not on the caller's clock";
+      EXPECT_GT(f->stamp, clock() - 0.5) << "frame stamp not on the caller's clock";
       frames.push_back(std::move(*f));
     }
     sleepCycle(bus.model().control_period_s);
@@ -416,10 +417,11 @@ TEST_F(DdsRobot, RosNodesDriveAndListenToTheSimulatedEnon) {
   ASSERT_TRUE(o["ok"].get<bool>());
   EXPECT_EQ(o["msg"]["header"]["frame_id"], "odom");
   EXPECT_EQ(o["msg"]["child_frame_id"], "base_link");
-  // 50 commands at 50 Hz, 0.25 m/s: up to 1 s of motion (the first ones may go before the
-  // driver has discovered the probe) plus the driver's 0.2 s command lifetime.
+  // 0.25 m/s for as long as the commands spanned (the first ones may go before the driver has
+  // discovered the probe) plus at most the driver's command lifetime and a state period.
+  const double span = json::parse(teleop.out())["first_to_last_s"].get<double>();
   const double x = o["msg"]["pose"]["pose"]["position"]["x"].get<double>();
   EXPECT_GT(x, 0.25 * 0.3);
-  EXPECT_LT(x, 0.25 * 1.3);
+  EXPECT_LT(x, 0.25 * (span + bus.model().watchdog_period_s + 0.05)) << "span " << span;
   EXPECT_DOUBLE_EQ(o["msg"]["twist"]["twist"]["linear"]["x"].get<double>(), 0.0);
 }
