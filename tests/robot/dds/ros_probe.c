@@ -13,8 +13,10 @@
  *       {"encapsulation":..., "ok":..., "msg":{...}}; "ok" is false when the bytes do not decode
  *       exactly (truncated, or bytes left over)
  *   ros_probe [--domain N] pub-image NS PGM ENCODING [--frame F] [--f PX] [--count K] [--rate HZ]
+ *             [--stamp0 S]
  *       publishes NS/image_raw (sensor_msgs/Image, best effort) and NS/camera_info (reliable),
- *       built from a binary PGM; --f sets fx = fy, the principal point is the image centre
+ *       built from a binary PGM; --f sets fx = fy, the principal point is the image centre;
+ *       frame k is stamped S + k / HZ (default S = 1000)
  *   ros_probe [--domain N] call SERVICE OBJECT TIMEOUT_S [--wait S]
  *       a refgrasp_msgs/srv/Detect client: request header {guid = writer instance handle, seq = 1}
  *   ros_probe [--domain N] pub-twist TOPIC VX WZ [--count K] [--rate HZ]
@@ -678,7 +680,7 @@ static int write_raw(dds_entity_t writer, wr *w) {
 }
 
 static int cmd_pub_image(dds_entity_t pp, const char *ns, const char *pgm, const char *encoding,
-                         const char *frame, double f, int count, double rate) {
+                         const char *frame, double f, int count, double rate, double stamp0) {
   int w = 0, h = 0;
   unsigned char *gray = read_pgm(pgm, &w, &h);
   if (!gray) {
@@ -700,7 +702,7 @@ static int cmd_pub_image(dds_entity_t pp, const char *ns, const char *pgm, const
   if (!wait_matched(wi, 10)) return 1;
   dds_sleepfor(DDS_MSECS(200));
   for (int k = 0; k < count; k++) {
-    const double t = 1000.0 + k / rate;
+    const double t = stamp0 + k / rate;
     const int32_t sec = (int32_t)floor(t);
     const uint32_t nsec = (uint32_t)llround((t - sec) * 1e9);
     /* sensor_msgs/CameraInfo */
@@ -861,7 +863,7 @@ int main(int argc, char **argv) {
   } else if (!strcmp(cmd, "pub-image") && a + 2 < argc) {
     rc = cmd_pub_image(pp, argv[a], argv[a + 1], argv[a + 2], opts(argc, argv, "--frame", "camera_optical_frame"),
                        optd(argc, argv, "--f", 550), (int)optd(argc, argv, "--count", 1),
-                       optd(argc, argv, "--rate", 5));
+                       optd(argc, argv, "--rate", 5), optd(argc, argv, "--stamp0", 1000));
   } else if (!strcmp(cmd, "call") && a + 2 < argc) {
     rc = cmd_call(pp, argv[a], argv[a + 1], atof(argv[a + 2]), optd(argc, argv, "--wait", 10));
   } else if (!strcmp(cmd, "pub-twist") && a + 2 < argc) {
