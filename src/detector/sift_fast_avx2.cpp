@@ -1,0 +1,117 @@
+// AVX2 + FMA kernels of the fast SIFT (8 lanes). Compiled with -mavx2 -mfma (CMakeLists.txt);
+// see sift_fast_kernels.h for the rules of these translation units.
+#include <immintrin.h>
+
+#include <cstdint>
+
+#include "detector/sift_fast_kernels.h"
+
+namespace refgrasp::detector::sift_internal {
+namespace {
+
+constexpr const char* kIsaName = "avx2";
+
+/// Per orientation bin o0: lanes o0 and o0+1 (mod 8) take sample weights (ia) 0, 1 / (ib) 2, 3.
+struct CellTables {
+  alignas(32) int32_t t[8][3][8];  ///< per o0: index a, index b, lane mask
+};
+constexpr CellTables makeCellTables() {
+  CellTables c{};
+  for (int o = 0; o < 8; ++o) {
+    const int o1 = (o + 1) & 7;
+    c.t[o][0][o] = 0, c.t[o][0][o1] = 1, c.t[o][1][o] = 2, c.t[o][1][o1] = 3;
+    c.t[o][2][o] = -1, c.t[o][2][o1] = -1;
+  }
+  return c;
+}
+constexpr CellTables kCellTables = makeCellTables();
+
+struct V {
+  static constexpr int N = 8;
+  using F = __m256;
+  using I = __m256i;
+  using M = __m256;
+  using IM = __m256i;
+  static F load(const float* p) { return _mm256_loadu_ps(p); }
+  static void store(float* p, F v) { _mm256_storeu_ps(p, v); }
+  static void istore(int32_t* p, I v) { _mm256_storeu_si256(reinterpret_cast<__m256i*>(p), v); }
+  static F load_u8(const uint8_t* p) {
+    return _mm256_cvtepi32_ps(_mm256_cvtepu8_epi32(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(p))));
+  }
+  static F set1(float x) { return _mm256_set1_ps(x); }
+  static I seti(int32_t x) { return _mm256_set1_epi32(x); }
+  static F iota_f() { return _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7); }
+  static I iota_i() { return _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7); }
+  static F add(F a, F b) { return _mm256_add_ps(a, b); }
+  static F sub(F a, F b) { return _mm256_sub_ps(a, b); }
+  static F mul(F a, F b) { return _mm256_mul_ps(a, b); }
+  static F div(F a, F b) { return _mm256_div_ps(a, b); }
+  static F fma(F a, F b, F c) { return _mm256_fmadd_ps(a, b, c); }
+  static F min(F a, F b) { return _mm256_min_ps(a, b); }
+  static F max(F a, F b) { return _mm256_max_ps(a, b); }
+  static F abs(F a) { return _mm256_and_ps(a, _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff))); }
+  static F sqrt(F a) { return _mm256_sqrt_ps(a); }
+  static F floor(F a) { return _mm256_floor_ps(a); }
+  static I to_int(F a) { return _mm256_cvtps_epi32(a); }
+  static F to_float(I a) { return _mm256_cvtepi32_ps(a); }
+  static F pow2(I n) { return _mm256_castsi256_ps(_mm256_slli_epi32(_mm256_add_epi32(n, _mm256_set1_epi32(127)), 23)); }
+  static I iadd(I a, I b) { return _mm256_add_epi32(a, b); }
+  static I isub(I a, I b) { return _mm256_sub_epi32(a, b); }
+  static I imul(I a, I b) { return _mm256_mullo_epi32(a, b); }
+  static M gt(F a, F b) { return _mm256_cmp_ps(a, b, _CMP_GT_OQ); }
+  static M lt(F a, F b) { return _mm256_cmp_ps(a, b, _CMP_LT_OQ); }
+  static M ge(F a, F b) { return _mm256_cmp_ps(a, b, _CMP_GE_OQ); }
+  static M le(F a, F b) { return _mm256_cmp_ps(a, b, _CMP_LE_OQ); }
+  static IM ilt(I a, I b) { return _mm256_cmpgt_epi32(b, a); }
+  static IM ige(I a, I b) { return _mm256_xor_si256(_mm256_cmpgt_epi32(b, a), _mm256_set1_epi32(-1)); }
+  static M mand(M a, M b) { return _mm256_and_ps(a, b); }
+  static M mor(M a, M b) { return _mm256_or_ps(a, b); }
+  static F select(M m, F a, F b) { return _mm256_blendv_ps(b, a, m); }
+  static I iselect(IM m, I a, I b) { return _mm256_blendv_epi8(b, a, m); }
+  static uint32_t bits(M m) { return static_cast<uint32_t>(_mm256_movemask_ps(m)); }
+  static M first_lanes(int n) {
+    return _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(n), iota_i()));
+  }
+  static void interleave(F lo, F hi, float* out) {
+    const F u0 = _mm256_unpacklo_ps(lo, hi), u1 = _mm256_unpackhi_ps(lo, hi);
+    _mm256_storeu_ps(out, _mm256_permute2f128_ps(u0, u1, 0x20));
+    _mm256_storeu_ps(out + 8, _mm256_permute2f128_ps(u0, u1, 0x31));
+  }
+  /// 4x4 transposes within each 128-bit lane: sample l's weights a..d at aos_lo(l), e..h at aos_hi(l).
+  static void transpose4(F a, F b, F c, F d, float* out) {
+    const F t0 = _mm256_unpacklo_ps(a, b), t1 = _mm256_unpackhi_ps(a, b);
+    const F t2 = _mm256_unpacklo_ps(c, d), t3 = _mm256_unpackhi_ps(c, d);
+    _mm256_storeu_ps(out, _mm256_shuffle_ps(t0, t2, 0x44));
+    _mm256_storeu_ps(out + N, _mm256_shuffle_ps(t0, t2, 0xEE));
+    _mm256_storeu_ps(out + 2 * N, _mm256_shuffle_ps(t1, t3, 0x44));
+    _mm256_storeu_ps(out + 3 * N, _mm256_shuffle_ps(t1, t3, 0xEE));
+  }
+  static void transpose8(F a, F b, F c, F d, F e, F f, F g, F h, float* out) {
+    transpose4(a, b, c, d, out);
+    transpose4(e, f, g, h, out + 4 * N);
+  }
+  static int aos_lo(int l) { return (l & 3) * N + (l >> 2) * 4; }
+  static int aos_hi(int l) { return 4 * N + aos_lo(l); }
+  static I cell_table_offset(I o0) { return _mm256_mullo_epi32(o0, _mm256_set1_epi32(24)); }
+  /// See the scalar add_sample; the other lanes of each cell add zero.
+  static void add_sample(float* h, const float* lo, const float* hi, int table_offset) {
+    const int32_t* t = &kCellTables.t[0][0][0] + table_offset;
+    const __m256 l = _mm256_broadcast_ps(reinterpret_cast<const __m128*>(lo));
+    const __m256 u = _mm256_broadcast_ps(reinterpret_cast<const __m128*>(hi));
+    const __m256i ia = _mm256_load_si256(reinterpret_cast<const __m256i*>(t));
+    const __m256i ib = _mm256_load_si256(reinterpret_cast<const __m256i*>(t + 8));
+    const __m256 m = _mm256_castsi256_ps(_mm256_load_si256(reinterpret_cast<const __m256i*>(t + 16)));
+    _mm256_storeu_ps(h, _mm256_add_ps(_mm256_loadu_ps(h), _mm256_and_ps(_mm256_permutevar8x32_ps(l, ia), m)));
+    _mm256_storeu_ps(h + 8, _mm256_add_ps(_mm256_loadu_ps(h + 8), _mm256_and_ps(_mm256_permutevar8x32_ps(l, ib), m)));
+    _mm256_storeu_ps(h + 48, _mm256_add_ps(_mm256_loadu_ps(h + 48), _mm256_and_ps(_mm256_permutevar8x32_ps(u, ia), m)));
+    _mm256_storeu_ps(h + 56, _mm256_add_ps(_mm256_loadu_ps(h + 56), _mm256_and_ps(_mm256_permutevar8x32_ps(u, ib), m)));
+  }
+};
+
+#include "detector/sift_fast_kernels.inl"
+
+}  // namespace
+
+const Kernels& avx2Kernels() { return kTable; }
+
+}  // namespace refgrasp::detector::sift_internal
