@@ -149,17 +149,22 @@ struct Octave {
 };
 constexpr int kTile = 32;  ///< gradient tiles are kTile x kTile pixels, at multiples of kTile
 
-void fillPads(float* row, int w, int pad) {
+/// BORDER_REFLECT_101 copies in the `pad` floats left (left = true) or right of a row.
+void fillPad(float* row, int w, int pad, bool left) {
   if (w > pad) {
-    for (int p = 1; p <= pad; ++p) {
-      row[-p] = row[p];
-      row[w - 1 + p] = row[w - 1 - p];
+    if (left) {
+      for (int p = 1; p <= pad; ++p) row[-p] = row[p];
+    } else {
+      for (int p = 1; p <= pad; ++p) row[w - 1 + p] = row[w - 1 - p];
     }
     return;
   }
   for (int p = 1; p <= pad; ++p) {
-    row[-p] = row[reflect101(-p, w)];
-    row[w - 1 + p] = row[reflect101(w - 1 + p, w)];
+    if (left) {
+      row[-p] = row[reflect101(-p, w)];
+    } else {
+      row[w - 1 + p] = row[reflect101(w - 1 + p, w)];
+    }
   }
 }
 
@@ -237,6 +242,7 @@ Workspace& workspace() {
 struct KeypointScratch {
   Buffer hist, weights;
   std::vector<int32_t> index;
+  std::vector<uint32_t> bits;
 };
 
 KeypointScratch& keypointScratch() {
@@ -247,110 +253,156 @@ KeypointScratch& keypointScratch() {
 // ------------------------------------------------------------------------------------------------
 // Scale space.
 
-/// Builds layers 0..n_build-1 of octave `o` in one top-to-bottom sweep; when `detect`, also the
-/// DoG rows and the extremum test of layers 1..n_layers (candidates appended to *cands).
-/// Octave 0 starts from the 8-bit input (doubled, then blurred by params.init); octave o > 0 from
-/// every second pixel of layer n_layers of octave o-1.
+/// Builds layers 0..n_build-1 of octave `o` in top-to-bottom sweeps over vertical strips,
+/// kBlock rows at a time; when `detect`, also the DoG rows and the extremum test of layers
+/// 1..n_layers (candidates appended to *cands). Octave 0 starts from the 8-bit input (doubled,
+/// then blurred by params.init); octave o > 0 from every second pixel of layer n_layers of octave
+/// o-1. Strips keep the rows in flight (the wavefront's lag times the layers) in L2: layer i of a
+/// strip is computed on the strip widened by the columns the later layers read (their kernels'
+/// half-widths, plus 1 for the DoG's 3-tap max/min), so every pixel gets the same arithmetic as
+/// in one full-width sweep.
 void sweepOctave(const si::Kernels& K, const Params& P, int o, const cv::Mat& input,
                  const Octave* prev, Octave& oct, int n_build, bool detect, Workspace& ws,
                  std::vector<Candidate>* cands) {
+  constexpr int kBlock = 4;         // rows per step: the column filter makes 4 rows from 2h + 4
+  constexpr int kStripWidth = 512;  // columns per strip (the last one takes the rest)
   const int W = oct.w, H = oct.h, S = oct.stride;
   const int L = n_build;
-  // Layer i's row y is produced at step y + lag[i]: by then layer i-1 has rows up to y + h_i.
-  std::vector<int> lag(L), ring_size(L, 0), filled(L, 0);
+  // Layer i makes block b - lag[i] at step b: by then layer i-1 has rows up to its last row + h_i.
+  std::vector<int> lag(L), halo(L, 0), ring_size(L, 0);
   std::vector<const Kernel*> kern(L, nullptr);
   if (o == 0) kern[0] = &P.init;
   for (int i = 1; i < L; ++i) kern[i] = &P.kernels[i];
   int max_h = 0;
   for (int i = 0; i < L; ++i) {
     const int h = kern[i] ? kern[i]->h : 0;
-    lag[i] = (i == 0 ? 0 : lag[i - 1]) + h;
-    if (kern[i]) ring_size[i] = std::min(2 * h + 1, H);
+    lag[i] = (i == 0 ? 0 : lag[i - 1]) + (h + kBlock - 1) / kBlock;
+    if (kern[i]) ring_size[i] = std::min(2 * h + kBlock, H);
     max_h = std::max(max_h, h);
   }
+  for (int i = L - 2; i >= 0; --i) halo[i] = halo[i + 1] + kern[i + 1]->h;
+  if (detect)
+    for (int& v : halo) v += 1;
   size_t ring_floats = 0;
   std::vector<size_t> ring_off(L, 0);
   for (int i = 0; i < L; ++i) {
     ring_off[i] = ring_floats;
     ring_floats += static_cast<size_t>(ring_size[i]) * S;
   }
-  // The doubled input rows, blended and padded for the init blur (octave 0 only).
   float* const rings = ws.rings.get(ring_floats + 64);
+  // The doubled input rows, blended and padded for the init blur (octave 0 only).
   const int up_pad = roundUp(std::max(P.init.h, 1), 16);
   float* const up_row = ws.temp.get(static_cast<size_t>(W + 2 * up_pad + 64) + input.cols + 64);
   float* const blend = up_row + W + 2 * up_pad + 32;
-  // DoG rows (d, 3-tap max, 3-tap min) of every DoG layer, rows y-1..y+1: computed once the last
-  // layer has row y+1, when all Gaussian rows up to y+1 are still in cache.
+  // DoG rows (d, 3-tap max, 3-tap min) of every DoG layer, in a ring of 8 rows: DoG rows up to
+  // y + 1 exist when the extremum test of row y runs (right after the last layer's block).
+  constexpr int kDogRing = 8;
   const int n_dog = detect ? L - 1 : 0;
-  float* const dogs = detect ? ws.dog.get(static_cast<size_t>(n_dog) * 9 * S + 64) : nullptr;
+  float* const dogs = detect ? ws.dog.get(static_cast<size_t>(n_dog) * 3 * kDogRing * S + 64) : nullptr;
   auto dslot = [&](int k, int y, int which) {
-    return dogs + (static_cast<size_t>(k * 3 + which) * 3 + (y % 3)) * S;
+    return dogs + (static_cast<size_t>(k * 3 + which) * kDogRing + (y % kDogRing)) * S;
   };
-  std::vector<const float*> rows(2 * max_h + 1);
+  std::vector<const float*> rows(2 * max_h + kBlock);
+  float* outs[kBlock];
   const float thr = static_cast<float>(P.threshold);
   if (detect) ws.cols.resize(W + 32);
 
-  auto sourceRow = [&](int i, int m) -> const float* {
-    if (i > 0) return oct.row(i - 1, m);
-    // Octave 0, layer 0: row m of the doubled input (OpenCV's bilinear resize coefficients).
-    const int hin = input.rows, q = m / 2;
-    int r0 = q, r1 = q;
-    float wa = 1.f, wb = 0.f;
-    if (m % 2 == 0 && q > 0) {
-      r0 = q - 1;
-      wa = 0.25f;
-      wb = 0.75f;
-    } else if (m % 2 == 1 && q < hin - 1) {
-      r1 = q + 1;
-      wa = 0.75f;
-      wb = 0.25f;
-    }
-    float* out = up_row + up_pad;
-    K.upsample_row(input.ptr<uint8_t>(r0), input.ptr<uint8_t>(r1), wa, wb, blend + 16, out, input.cols);
-    fillPads(out, W, up_pad);
-    return out;
-  };
-
-  const int steps = H + lag[L - 1];
-  for (int t = 0; t < steps; ++t) {
+  const int n_strips = std::max(1, (W + kStripWidth / 2) / kStripWidth);
+  for (int strip = 0; strip < n_strips; ++strip) {
+    const int sx0 = strip * kStripWidth, sx1 = strip + 1 == n_strips ? W : sx0 + kStripWidth;
+    // Columns [c0[i], c1[i]) of layer i; c0 a multiple of 16 for aligned vector access.
+    std::vector<int> c0(L), c1(L), filled(L, 0);
     for (int i = 0; i < L; ++i) {
-      const int y = t - lag[i];
-      if (y < 0 || y >= H) continue;
-      float* dst = oct.row(i, y);
-      if (!kern[i]) {  // octave o > 0, layer 0: subsample
-        const float* src = prev->row(P.n_layers, 2 * y);
-        for (int x = 0; x < W; ++x) dst[x] = src[2 * x];
-      } else {
+      c0[i] = std::max(0, sx0 - halo[i]) / 16 * 16;
+      c1[i] = std::min(W, sx1 + halo[i]);
+    }
+    auto sourceRow = [&](int i, int m) -> const float* {
+      if (i > 0) return oct.row(i - 1, m);
+      // Octave 0, layer 0: row m of the doubled input (OpenCV's bilinear resize coefficients),
+      // the columns the init blur reads.
+      const int hin = input.rows, q = m / 2;
+      int r0 = q, r1 = q;
+      float wa = 1.f, wb = 0.f;
+      if (m % 2 == 0 && q > 0) {
+        r0 = q - 1;
+        wa = 0.25f;
+        wb = 0.75f;
+      } else if (m % 2 == 1 && q < hin - 1) {
+        r1 = q + 1;
+        wa = 0.75f;
+        wb = 0.25f;
+      }
+      float* out = up_row + up_pad;
+      const int h = P.init.h;
+      const int u0 = std::max(0, c0[0] - h) / 2, u1 = std::min(input.cols, (c1[0] + h + 1) / 2 + 1);
+      K.upsample_row(input.ptr<uint8_t>(r0), input.ptr<uint8_t>(r1), wa, wb, blend + 16, out, input.cols,
+                     u0, u1);
+      if (c0[0] - h < 0) fillPad(out, W, up_pad, true);
+      if (c1[0] + h > W) fillPad(out, W, up_pad, false);
+      return out;
+    };
+    const int n_blocks = (H + kBlock - 1) / kBlock;
+    int tested = kBorder;  // next row of the extremum test
+    const int tx0 = std::max(kBorder, sx0), tx1 = std::min(W - kBorder, sx1);
+    const int dx0 = std::max(0, sx0 - 1) / 16 * 16, dx1 = std::min(W, sx1 + 1);
+    for (int step = 0; step < n_blocks + lag[L - 1]; ++step) {
+      for (int i = 0; i < L; ++i) {
+        const int y0 = (step - lag[i]) * kBlock;
+        if (y0 < 0 || y0 >= H) continue;
+        const int y1 = std::min(H, y0 + kBlock);
+        const int x0 = c0[i], n = c1[i] - c0[i];
+        if (!kern[i]) {  // octave o > 0, layer 0: subsample
+          for (int y = y0; y < y1; ++y) {
+            const float* src = prev->row(P.n_layers, 2 * y);
+            float* dst = oct.row(i, y);
+            for (int x = x0; x < c1[i]; ++x) dst[x] = src[2 * x];
+            if (x0 == 0) fillPad(dst, W, oct.pad, true);
+            if (c1[i] == W) fillPad(dst, W, oct.pad, false);
+          }
+          continue;
+        }
         const Kernel& k = *kern[i];
         float* ring = rings + ring_off[i];
-        const int need = std::min(H - 1, y + k.h);
+        const int need = std::min(H - 1, y1 - 1 + k.h);
         while (filled[i] <= need) {
           const int m = filled[i]++;
-          K.row_filter(sourceRow(i, m) - k.h, ring + static_cast<size_t>(m % ring_size[i]) * S, W,
+          K.row_filter(sourceRow(i, m) + x0 - k.h, ring + static_cast<size_t>(m % ring_size[i]) * S + x0, n,
                        k.taps.data(), k.n);
         }
-        for (int j = 0; j <= 2 * k.h; ++j)
-          rows[j] = ring + static_cast<size_t>(reflect101(y + j - k.h, H) % ring_size[i]) * S;
-        K.col_filter(rows.data(), dst, W, k.centre.data(), k.h);
-      }
-      fillPads(dst, W, oct.pad);
-    }
-    const int y = t - lag[L - 1];  // the last layer's newest row
-    if (!detect || y < 0 || y >= H) continue;
-    for (int k = 0; k < n_dog; ++k)
-      K.dog_row(oct.row(k, y), oct.row(k + 1, y), dslot(k, y, 0), dslot(k, y, 1), dslot(k, y, 2), W);
-    const int yy = y - 1;  // DoG row y completes the 3x3x3 blocks of row y-1
-    if (yy < kBorder || yy >= H - kBorder) continue;
-    for (int layer = 1; layer <= P.n_layers; ++layer) {
-      const float* mx[9];
-      const float* mn[9];
-      for (int a = 0; a < 3; ++a)
-        for (int b = 0; b < 3; ++b) {
-          mx[3 * a + b] = dslot(layer - 1 + a, yy - 1 + b, 1);
-          mn[3 * a + b] = dslot(layer - 1 + a, yy - 1 + b, 2);
+        for (int j = 0; j < 2 * k.h + (y1 - y0); ++j)
+          rows[j] = ring + static_cast<size_t>(reflect101(y0 + j - k.h, H) % ring_size[i]) * S + x0;
+        for (int y = y0; y < y1; ++y) outs[y - y0] = oct.row(i, y) + x0;
+        K.col_filter(rows.data(), outs, y1 - y0, n, k.centre.data(), k.h);
+        for (int y = y0; y < y1; ++y) {
+          if (x0 == 0) fillPad(oct.row(i, y), W, oct.pad, true);
+          if (c1[i] == W) fillPad(oct.row(i, y), W, oct.pad, false);
         }
-      const int n = K.extrema_row(dslot(layer, yy, 0), mx, mn, kBorder, W - kBorder, thr, ws.cols.data());
-      for (int q = 0; q < n; ++q) cands->push_back({layer, yy, ws.cols[q]});
+      }
+      if (!detect) continue;
+      // The last layer's newest block: its DoG rows, then the extremum test of the rows whose
+      // 3x3x3 neighbourhoods are now complete.
+      const int y0 = (step - lag[L - 1]) * kBlock;
+      if (y0 < 0 || y0 >= H) continue;
+      const int y1 = std::min(H, y0 + kBlock);
+      for (int y = y0; y < y1; ++y)
+        for (int k = 0; k < n_dog; ++k)
+          K.dog_row(oct.row(k, y) + dx0, oct.row(k + 1, y) + dx0, dslot(k, y, 0) + dx0, dslot(k, y, 1) + dx0,
+                    dslot(k, y, 2) + dx0, dx1 - dx0);
+      for (; tested < std::min(y1 - 1, H - kBorder); ++tested) {
+        const int yy = tested;
+        if (tx0 >= tx1) continue;
+        for (int layer = 1; layer <= P.n_layers; ++layer) {
+          const float* mx[9];
+          const float* mn[9];
+          for (int a = 0; a < 3; ++a)
+            for (int b = 0; b < 3; ++b) {
+              mx[3 * a + b] = dslot(layer - 1 + a, yy - 1 + b, 1);
+              mn[3 * a + b] = dslot(layer - 1 + a, yy - 1 + b, 2);
+            }
+          const int n = K.extrema_row(dslot(layer, yy, 0), mx, mn, tx0, tx1, thr, ws.cols.data());
+          for (int q = 0; q < n; ++q) cands->push_back({layer, yy, ws.cols[q]});
+        }
+      }
     }
   }
 }
@@ -550,11 +602,13 @@ void describeSpot(const si::Kernels& K, const Octave& oct, const Kp* kps, int co
   const float hist_width = kDescrSclFactor * k0.scl;
   const int radius = descriptorRadius(oct, k0.scl);
   const si::GradientPatch p = patchAround(oct, k0.layer, pr, pc, radius);
-  float* hist = s.hist.get(si::kDescrCopies * si::kDescrCells * kDescrBins + 64);
+  float* hist = s.hist.get(si::kDescrCopies * si::kDescrLayout + 64);
   si::DescriptorScratch ds;
-  ds.weights = s.weights.get(8 * 16 + 64);
-  s.index.resize(2 * 16 + 16);
+  ds.weights = s.weights.get(si::kDescrBlock * 8 * 16 + 64);
+  s.index.resize(si::kDescrBlock * 2 * 16 + 16);
+  s.bits.resize(si::kDescrBlock);
   ds.index = s.index.data();
+  ds.bits = s.bits.data();
   for (int q = 0; q < count; ++q) {
     float ori = 360.f - kps[q].kp.angle;
     if (std::abs(ori - 360.f) < FLT_EPSILON) ori = 0.f;
@@ -797,11 +851,10 @@ void fastSiftDetectAndCompute(const cv::Mat& gray8, const SiftOptions& opt, cons
   const int nk = static_cast<int>(order.size());
   auto t4 = Clock::now();
   descriptors->create(nk, kDescrLen, CV_32F);
+  stats.describe_ms = ms(t2, t4);
   if (fused) {
     for (int q = 0; q < nk; ++q) std::memcpy(descriptors->ptr<float>(q), desc_of[order[q]], kDescrLen * sizeof(float));
-    stats.orientation_ms = ms(t2, t4);  // orientation and descriptors together
   } else {
-    stats.orientation_ms = ms(t2, t4);
     // Descriptors of the keypoints kept, spot by spot in spatial order (kps is in that order).
     std::vector<int> kept(order);
     std::sort(kept.begin(), kept.end());
@@ -831,9 +884,11 @@ void fastSiftDetectAndCompute(const cv::Mat& gray8, const SiftOptions& opt, cons
       }
     });
   }
-  stats.descriptor_ms = ms(t4, Clock::now());
+  const auto t5 = Clock::now();
+  if (!fused) stats.describe_ms += ms(t4, t5);  // the kept keypoints' descriptors
   keypoints->resize(nk);
   for (int q = 0; q < nk; ++q) (*keypoints)[q] = kps[order[q]].kp;
+  stats.output_ms = ms(t4, Clock::now()) - (fused ? 0 : ms(t4, t5));
   stats.keypoints = nk;
   if (call.stats) *call.stats = stats;
 }

@@ -31,10 +31,10 @@ const char* siftIsaName(SiftIsa isa);
 /// What one call did and where its time went (wall clock of this call's stages, ms).
 struct FastSiftStats {
   double scale_space_ms = 0;  ///< pyramid + DoG + extremum test (one sweep per octave)
-  double localise_ms = 0;     ///< sub-pixel interpolation, contrast and edge tests
-  double gradients_ms = 0;    ///< gradient magnitude and angle where keypoints need them
-  double orientation_ms = 0;
-  double descriptor_ms = 0;
+  double localise_ms = 0;     ///< sub-pixel interpolation, contrast and edge tests, duplicates
+  /// Gradient tiles where the windows reach, orientation histograms and descriptors.
+  double describe_ms = 0;
+  double output_ms = 0;       ///< sort strongest first, cut to max_features, copy out
   int octaves_built = 0, octaves_searched = 0;
   int candidates = 0, extrema = 0, keypoints = 0;
 };

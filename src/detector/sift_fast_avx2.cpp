@@ -11,6 +11,9 @@ namespace {
 
 constexpr const char* kIsaName = "avx2";
 
+/// transpose8's layout: the first four weights of lane l at kAos[l] (4x4 blocks per 128 bits).
+constexpr int8_t kAos[8] = {0, 8, 16, 24, 4, 12, 20, 28};
+
 /// Per orientation bin o0: lanes o0 and o0+1 (mod 8) take sample weights (ia) 0, 1 / (ib) 2, 3.
 struct CellTables {
   alignas(32) int32_t t[8][3][8];  ///< per o0: index a, index b, lane mask
@@ -58,6 +61,7 @@ struct V {
   static I iadd(I a, I b) { return _mm256_add_epi32(a, b); }
   static I isub(I a, I b) { return _mm256_sub_epi32(a, b); }
   static I imul(I a, I b) { return _mm256_mullo_epi32(a, b); }
+  static I iand(I a, I b) { return _mm256_and_si256(a, b); }
   static M gt(F a, F b) { return _mm256_cmp_ps(a, b, _CMP_GT_OQ); }
   static M lt(F a, F b) { return _mm256_cmp_ps(a, b, _CMP_LT_OQ); }
   static M ge(F a, F b) { return _mm256_cmp_ps(a, b, _CMP_GE_OQ); }
@@ -90,7 +94,7 @@ struct V {
     transpose4(a, b, c, d, out);
     transpose4(e, f, g, h, out + 4 * N);
   }
-  static int aos_lo(int l) { return (l & 3) * N + (l >> 2) * 4; }
+  static int aos_lo(int l) { return kAos[l]; }
   static int aos_hi(int l) { return 4 * N + aos_lo(l); }
   static I cell_table_offset(I o0) { return _mm256_mullo_epi32(o0, _mm256_set1_epi32(24)); }
   /// See the scalar add_sample; the other lanes of each cell add zero.
@@ -101,10 +105,10 @@ struct V {
     const __m256i ia = _mm256_load_si256(reinterpret_cast<const __m256i*>(t));
     const __m256i ib = _mm256_load_si256(reinterpret_cast<const __m256i*>(t + 8));
     const __m256 m = _mm256_castsi256_ps(_mm256_load_si256(reinterpret_cast<const __m256i*>(t + 16)));
-    _mm256_storeu_ps(h, _mm256_add_ps(_mm256_loadu_ps(h), _mm256_and_ps(_mm256_permutevar8x32_ps(l, ia), m)));
-    _mm256_storeu_ps(h + 8, _mm256_add_ps(_mm256_loadu_ps(h + 8), _mm256_and_ps(_mm256_permutevar8x32_ps(l, ib), m)));
-    _mm256_storeu_ps(h + 48, _mm256_add_ps(_mm256_loadu_ps(h + 48), _mm256_and_ps(_mm256_permutevar8x32_ps(u, ia), m)));
-    _mm256_storeu_ps(h + 56, _mm256_add_ps(_mm256_loadu_ps(h + 56), _mm256_and_ps(_mm256_permutevar8x32_ps(u, ib), m)));
+    _mm256_store_ps(h, _mm256_add_ps(_mm256_load_ps(h), _mm256_and_ps(_mm256_permutevar8x32_ps(l, ia), m)));
+    _mm256_store_ps(h + 8, _mm256_add_ps(_mm256_load_ps(h + 8), _mm256_and_ps(_mm256_permutevar8x32_ps(l, ib), m)));
+    _mm256_store_ps(h + 48, _mm256_add_ps(_mm256_load_ps(h + 48), _mm256_and_ps(_mm256_permutevar8x32_ps(u, ia), m)));
+    _mm256_store_ps(h + 56, _mm256_add_ps(_mm256_load_ps(h + 56), _mm256_and_ps(_mm256_permutevar8x32_ps(u, ib), m)));
   }
 };
 

@@ -12,6 +12,9 @@ namespace {
 
 constexpr const char* kIsaName = "avx512";
 
+/// transpose8's layout: the first four weights of lane l at kAos[l] (4x4 blocks per 128 bits).
+constexpr int8_t kAos[16] = {0, 16, 32, 48, 4, 20, 36, 52, 8, 24, 40, 56, 12, 28, 44, 60};
+
 /// Per orientation bin o0 (cells c0 | c0+1 in the two 8-lane halves): lanes o0, o0+1 (mod 8),
 /// 8+o0, 8+(o0+1 mod 8) take sample weights 0, 1, 2, 3.
 struct CellTables {
@@ -61,6 +64,7 @@ struct V {
   static I iadd(I a, I b) { return _mm512_add_epi32(a, b); }
   static I isub(I a, I b) { return _mm512_sub_epi32(a, b); }
   static I imul(I a, I b) { return _mm512_mullo_epi32(a, b); }
+  static I iand(I a, I b) { return _mm512_and_si512(a, b); }
   static M gt(F a, F b) { return _mm512_cmp_ps_mask(a, b, _CMP_GT_OQ); }
   static M lt(F a, F b) { return _mm512_cmp_ps_mask(a, b, _CMP_LT_OQ); }
   static M ge(F a, F b) { return _mm512_cmp_ps_mask(a, b, _CMP_GE_OQ); }
@@ -94,22 +98,17 @@ struct V {
     transpose4(a, b, c, d, out);
     transpose4(e, f, g, h, out + 4 * N);
   }
-  static int aos_lo(int l) { return (l & 3) * N + (l >> 2) * 4; }
+  static int aos_lo(int l) { return kAos[l]; }
   static int aos_hi(int l) { return 4 * N + aos_lo(l); }
   static I cell_table_offset(I o0) { return o0; }
-  /// See the scalar add_sample; cells c0 | c0+1 are built as one 16-float vector, the other lanes
-  /// add zero. h must be 32-byte aligned.
+  /// See the scalar add_sample; cells c0 | c0+1 are one 16-float vector, the other lanes add zero.
   static void add_sample(float* h, const float* lo, const float* hi, int o0) {
     const __m512i idx = _mm512_load_si512(kCellTables.idx[o0]);
     const __mmask16 m = kCellTables.mask[o0];
     const __m512 a = _mm512_maskz_permutexvar_ps(m, idx, _mm512_zextps128_ps512(_mm_loadu_ps(lo)));
     const __m512 b = _mm512_maskz_permutexvar_ps(m, idx, _mm512_zextps128_ps512(_mm_loadu_ps(hi)));
-    // Cells are 32-byte aligned; 64-byte accesses at 32-byte offsets would split cache lines and
-    // defeat store-to-load forwarding, so each cell is updated on its own.
-    _mm256_store_ps(h, _mm256_add_ps(_mm256_load_ps(h), _mm512_castps512_ps256(a)));
-    _mm256_store_ps(h + 8, _mm256_add_ps(_mm256_load_ps(h + 8), _mm512_extractf32x8_ps(a, 1)));
-    _mm256_store_ps(h + 48, _mm256_add_ps(_mm256_load_ps(h + 48), _mm512_castps512_ps256(b)));
-    _mm256_store_ps(h + 56, _mm256_add_ps(_mm256_load_ps(h + 56), _mm512_extractf32x8_ps(b, 1)));
+    _mm512_store_ps(h, _mm512_add_ps(_mm512_load_ps(h), a));  // 64-byte aligned cell pairs
+    _mm512_store_ps(h + 48, _mm512_add_ps(_mm512_load_ps(h + 48), b));
   }
 };
 

@@ -29,30 +29,36 @@ struct GradientPatch {
   bool empty() const { return i0 > i1 || j0 > j1; }
 };
 
-/// Scratch memory of one descriptor computation (no allocation per keypoint).
+/// Scratch memory of one descriptor computation (no allocation per keypoint): kDescrBlock
+/// vectors of samples between the vector pass and the scatter pass.
+constexpr int kDescrBlock = 32;
 struct DescriptorScratch {
-  float* weights = nullptr;  ///< >= 8 x 16 floats
-  int32_t* index = nullptr;  ///< >= 2 x 16 ints
+  float* weights = nullptr;  ///< kDescrBlock x 8 x 16 floats
+  int32_t* index = nullptr;  ///< kDescrBlock x 2 x 16 ints
+  uint32_t* bits = nullptr;  ///< kDescrBlock lane masks
 };
 /// The descriptor histogram: (4 + 2) x (4 + 2) spatial cells (a border cell each side) x 8 bins,
-/// accumulated in kDescrCopies interleaved copies (a power of two).
+/// accumulated in kDescrCopies interleaved copies (a power of two) of kDescrLayout floats.
 constexpr int kDescrCells = 36;
 constexpr int kDescrCopies = 4;
+constexpr int kDescrLayout = 2 * kDescrCells * 8;
 
 struct Kernels {
   const char* name;
   /// out[x] = k[n-1]*in[x+n-1] + (... + (k[1]*in[x+1] + k[0]*in[x])), one rounding per fused
   /// multiply-add, left to right; `in` holds width + n - 1 samples.
   void (*row_filter)(const float* in, float* out, int width, const float* k, int n);
-  /// out[x] = kc[h]*(rows[0][x] + rows[2h][x]) + (... + (kc[1]*(rows[h-1][x] + rows[h+1][x])
-  /// + kc[0]*rows[h][x])), fused multiply-adds; kc[j] is the tap at distance j from the centre.
-  void (*col_filter)(const float* const* rows, float* out, int width, const float* kc, int h);
-  /// The 2x up-sampling of one 8-bit row (OpenCV's bilinear resize, exact in float):
-  /// out[0] = a[0], out[2m] = .25 a[m-1] + .75 a[m], out[2m+1] = .75 a[m] + .25 a[m+1],
-  /// out[2w-1] = a[w-1], with a = wa*row0 + wb*row1 (weights 1, .75 or .25) written to
-  /// blend[0..w) (blend[-1] and blend[w] are used too).
+  /// Output rows q = 0..n_out-1: out[q][x] = kc[h]*(rows[q][x] + rows[q+2h][x]) + (... +
+  /// (kc[1]*(rows[q+h-1][x] + rows[q+h+1][x]) + kc[0]*rows[q+h][x])), fused multiply-adds; kc[j]
+  /// is the tap at distance j from the centre; rows has 2h + n_out entries.
+  void (*col_filter)(const float* const* rows, float* const* out, int n_out, int width, const float* kc,
+                     int h);
+  /// Columns [2 m0, 2 m1) of the 2x up-sampling of one 8-bit row of width w (OpenCV's bilinear
+  /// resize, exact in float): out[2m] = .25 a[m-1] + .75 a[m], out[2m+1] = .75 a[m] + .25 a[m+1]
+  /// with a = wa*row0 + wb*row1 (weights 1, .75 or .25) clamped at the row's ends (out[0] = a[0],
+  /// out[2w-1] = a[w-1]); a is written to blend[m0-1 .. m1].
   void (*upsample_row)(const uint8_t* row0, const uint8_t* row1, float wa, float wb, float* blend,
-                       float* out, int w);
+                       float* out, int w, int m0, int m1);
   /// d[x] = b[x] - a[x]; mx/mn: max/min of d[x-1..x+1] for x in [1, width-1).
   void (*dog_row)(const float* a, const float* b, float* d, float* mx, float* mn, int width);
   /// Scale-space extremum test at columns [c0, c1) of the middle DoG row: |v| > thr and v >= the
@@ -69,8 +75,8 @@ struct Kernels {
   /// OpenCV's orientation histogram (n bins, unsmoothed) of the patch samples with |i|, |j| <=
   /// radius, weighted by exp(-(i^2 + j^2) / (2 sigma^2)); hist has n floats (cleared here).
   void (*orientation_hist)(const GradientPatch& p, int radius, float sigma, int n, float* hist);
-  /// OpenCV's raw descriptor histogram: hist has kDescrCopies x kDescrCells x 8 floats (scratch,
-  /// cleared here; the result is in the first kDescrCells x 8), cell
+  /// OpenCV's raw descriptor histogram: hist has kDescrCopies x kDescrLayout floats, 64-byte
+  /// aligned (scratch, cleared here; the result is in the first kDescrCells x 8), cell
   /// (r + 1) * 6 + (c + 1) for the 4x4 grid; cos_t, sin_t are cos/sin of the descriptor angle
   /// divided by the histogram width; ori_deg the descriptor angle in degrees.
   void (*descriptor_hist)(const GradientPatch& p, int radius, float cos_t, float sin_t,

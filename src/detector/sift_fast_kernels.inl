@@ -54,20 +54,16 @@ inline V::F expV(V::F x) {
 void rowFilter(const float* in, float* out, int width, const float* k, int n) {
   constexpr int N = V::N;
   int x = 0;
-  for (; x + 4 * N <= width; x += 4 * N) {
-    V::F a0 = V::set1(0.f), a1 = a0, a2 = a0, a3 = a0;
+  // Eight independent chains of fused multiply-adds keep both FMA pipes busy.
+  for (; x + 8 * N <= width; x += 8 * N) {
+    V::F a[8];
+    for (V::F& v : a) v = V::set1(0.f);
     const float* s = in + x;
     for (int j = 0; j < n; ++j) {
       const V::F kj = V::set1(k[j]);
-      a0 = V::fma(V::load(s + j), kj, a0);
-      a1 = V::fma(V::load(s + j + N), kj, a1);
-      a2 = V::fma(V::load(s + j + 2 * N), kj, a2);
-      a3 = V::fma(V::load(s + j + 3 * N), kj, a3);
+      for (int q = 0; q < 8; ++q) a[q] = V::fma(V::load(s + j + q * N), kj, a[q]);
     }
-    V::store(out + x, a0);
-    V::store(out + x + N, a1);
-    V::store(out + x + 2 * N, a2);
-    V::store(out + x + 3 * N, a3);
+    for (int q = 0; q < 8; ++q) V::store(out + x + q * N, a[q]);
   }
   for (; x < width; x += N) {
     V::F a = V::set1(0.f);
@@ -76,51 +72,70 @@ void rowFilter(const float* in, float* out, int width, const float* k, int n) {
   }
 }
 
-void colFilter(const float* const* rows, float* out, int width, const float* kc, int h) {
+// Output row q (0 <= q < R) from input rows rows[q .. q + 2h] (centre rows[q + h]); R rows at once
+// so that each input row, once in L1, serves several outputs.
+template <int R>
+void colFilterRows(const float* const* rows, float* const* out, int width, const float* kc, int h) {
   constexpr int N = V::N;
-  const float* centre = rows[h];
+  constexpr int X = 8 / R;  // vectors per row and iteration: 8 chains in all
   int x = 0;
-  for (; x + 4 * N <= width; x += 4 * N) {
+  for (; x + X * N <= width; x += X * N) {
+    V::F a[R][X];
     const V::F k0 = V::set1(kc[0]);
-    const float* c = centre + x;
-    V::F a0 = V::mul(V::load(c), k0), a1 = V::mul(V::load(c + N), k0);
-    V::F a2 = V::mul(V::load(c + 2 * N), k0), a3 = V::mul(V::load(c + 3 * N), k0);
+    for (int q = 0; q < R; ++q)
+      for (int v = 0; v < X; ++v) a[q][v] = V::mul(V::load(rows[q + h] + x + v * N), k0);
     for (int j = 1; j <= h; ++j) {
-      const float* up = rows[h - j] + x;
-      const float* dn = rows[h + j] + x;
       const V::F kj = V::set1(kc[j]);
-      a0 = V::fma(V::add(V::load(up), V::load(dn)), kj, a0);
-      a1 = V::fma(V::add(V::load(up + N), V::load(dn + N)), kj, a1);
-      a2 = V::fma(V::add(V::load(up + 2 * N), V::load(dn + 2 * N)), kj, a2);
-      a3 = V::fma(V::add(V::load(up + 3 * N), V::load(dn + 3 * N)), kj, a3);
+      for (int q = 0; q < R; ++q) {
+        const float* up = rows[q + h - j] + x;
+        const float* dn = rows[q + h + j] + x;
+        for (int v = 0; v < X; ++v) a[q][v] = V::fma(V::add(V::load(up + v * N), V::load(dn + v * N)), kj, a[q][v]);
+      }
     }
-    V::store(out + x, a0);
-    V::store(out + x + N, a1);
-    V::store(out + x + 2 * N, a2);
-    V::store(out + x + 3 * N, a3);
+    for (int q = 0; q < R; ++q)
+      for (int v = 0; v < X; ++v) V::store(out[q] + x + v * N, a[q][v]);
   }
-  for (; x < width; x += N) {
-    V::F a = V::mul(V::load(centre + x), V::set1(kc[0]));
-    for (int j = 1; j <= h; ++j)
-      a = V::fma(V::add(V::load(rows[h - j] + x), V::load(rows[h + j] + x)), V::set1(kc[j]), a);
-    V::store(out + x, a);
+  for (; x < width; x += N)
+    for (int q = 0; q < R; ++q) {
+      V::F a = V::mul(V::load(rows[q + h] + x), V::set1(kc[0]));
+      for (int j = 1; j <= h; ++j)
+        a = V::fma(V::add(V::load(rows[q + h - j] + x), V::load(rows[q + h + j] + x)), V::set1(kc[j]), a);
+      V::store(out[q] + x, a);
+    }
+}
+
+void colFilter(const float* const* rows, float* const* out, int n_out, int width, const float* kc, int h) {
+  for (int q = 0; q < n_out;) {
+    const int left = n_out - q;
+    if (left >= 4) {
+      colFilterRows<4>(rows + q, out + q, width, kc, h);
+      q += 4;
+    } else if (left >= 2) {
+      colFilterRows<2>(rows + q, out + q, width, kc, h);
+      q += 2;
+    } else {
+      colFilterRows<1>(rows + q, out + q, width, kc, h);
+      q += 1;
+    }
   }
 }
 
 void upsampleRow(const uint8_t* row0, const uint8_t* row1, float wa, float wb, float* a, float* out,
-                 int w) {
+                 int w, int m0, int m1) {
   constexpr int N = V::N;
-  // Vertical blend (exact: multiples of 1/4 below 256) into a[0..w), a[-1] = a[0], a[w] = a[w-1].
+  // Vertical blend (exact: multiples of 1/4 below 256) of input columns [m0 - 1, m1] (clamped to
+  // the row) into a[m0 - 1 .. m1]; then out[2m] = .25 a[m-1] + .75 a[m], out[2m+1] = .75 a[m] +
+  // .25 a[m+1] for m in [m0, m1).
   const V::F va = V::set1(wa), vb = V::set1(wb);
-  int m = 0;
-  for (; m + N <= w; m += N)
+  int m = m0;
+  for (; m + N <= m1; m += N)
     V::store(a + m, V::add(V::mul(V::load_u8(row0 + m), va), V::mul(V::load_u8(row1 + m), vb)));
-  for (; m < w; ++m) a[m] = static_cast<float>(row0[m]) * wa + static_cast<float>(row1[m]) * wb;
-  a[-1] = a[0];
-  a[w] = a[w - 1];
-  // out[2m] = .25 a[m-1] + .75 a[m], out[2m+1] = .75 a[m] + .25 a[m+1].
+  for (; m < m1; ++m) a[m] = static_cast<float>(row0[m]) * wa + static_cast<float>(row1[m]) * wb;
+  const int l = m0 > 0 ? m0 - 1 : 0, r = m1 < w ? m1 : w - 1;
+  a[m0 - 1] = static_cast<float>(row0[l]) * wa + static_cast<float>(row1[l]) * wb;
+  a[m1] = static_cast<float>(row0[r]) * wa + static_cast<float>(row1[r]) * wb;
   const V::F q = V::set1(0.25f), t = V::set1(0.75f);
-  for (m = 0; m < w; m += N) {
+  for (m = m0; m < m1; m += N) {
     const V::F am = V::load(a + m), al = V::load(a + m - 1), ar = V::load(a + m + 1);
     V::interleave(V::add(V::mul(al, q), V::mul(am, t)), V::add(V::mul(am, t), V::mul(ar, q)),
                   out + 2 * m);
@@ -207,15 +222,21 @@ void orientationHist(const GradientPatch& p, int radius, float sigma, int n, flo
 }
 
 // OpenCV's descriptor histogram: trilinear weights of each sample into 2 x 2 cells x 2 of 8
-// orientation bins. The per-sample weights are computed N samples at a time, then added sample
-// by sample (row-major order) into one of kDescrCopies interleaved histogram copies (sample k
-// into copy k mod kDescrCopies, so that consecutive samples do not wait on each other's stores);
-// the copies are summed at the end. Orientation bin 8 wraps to 0 directly.
+// orientation bins (bin 8 wraps to 0 directly). Two passes over blocks of up to kDescrBlock
+// vectors: the vector pass computes the weights of N samples at a time (iterations independent,
+// so they overlap), then the scatter pass adds them sample by sample, in row-major order.
+// Accumulator layout (kDescrLayout floats per copy, 64-byte aligned): an "even" grid where the
+// cell pairs (c, c+1), c even, and an "odd" grid where the pairs with c odd are 16 contiguous,
+// 64-byte aligned floats; cell (rr, cc) (rr, cc = 0..5, the 4x4 grid plus a border) is at
+// rr * 48 + cc * 8 in the even grid, 288 + rr * 48 + (cc - 1) * 8 in the odd one. A sample whose
+// left cell is cc writes its two cell pairs (rows rr and rr + 1) in the grid of cc's parity.
+// The sample in column j writes copy j mod kDescrCopies, so that consecutive samples do not wait
+// on each other's stores. Result: hist[cell * 8 + bin], sum of both grids and all copies.
 void descriptorHist(const GradientPatch& p, int radius, float cos_t, float sin_t, float ori_deg,
                     const DescriptorScratch& s, float* hist) {
   constexpr int N = V::N;
   constexpr int d = 4, n = 8;
-  for (int b = 0; b < kDescrCopies * kDescrCells * n; ++b) hist[b] = 0.f;
+  for (int b = 0; b < kDescrCopies * kDescrLayout; b += N) V::store(hist + b, V::set1(0.f));
   const float bins_per_rad = n / 360.f;
   const float exp_scale = -1.f / (d * d * 0.5f);
   const int i0 = p.i0 > -radius ? p.i0 : -radius, i1 = p.i1 < radius ? p.i1 : radius;
@@ -224,11 +245,24 @@ void descriptorHist(const GradientPatch& p, int radius, float cos_t, float sin_t
   const V::F half_d = V::set1(static_cast<float>(d / 2)), half = V::set1(0.5f);
   const V::F lo = V::set1(-1.f), hi = V::set1(static_cast<float>(d));
   const V::F vori = V::set1(ori_deg), vbins = V::set1(bins_per_rad), vexp = V::set1(exp_scale);
-  const V::I vn = V::seti(n), izero = V::seti(0), one = V::seti(1), dp2 = V::seti(d + 2);
-  float* wbuf = s.weights;       // the 8 weights of each sample, V::transpose8's layout
-  int32_t* cbuf = s.index;       // 8 x cell index (r0 + 1) * (d + 2) + c0 + 1 of each lane
-  int32_t* obuf = s.index + N;   // V::cell_table_offset(o0) of each lane
-  int sample = 0;
+  const V::F f1 = V::set1(1.f), f8 = V::set1(8.f), f48 = V::set1(48.f), fhalf = V::set1(0.5f);
+  const V::F fm2 = V::set1(-2.f), f280 = V::set1(280.f), vN = V::set1(static_cast<float>(N));
+  const V::I seven = V::seti(7), copies = V::seti(kDescrCopies - 1), layout = V::seti(kDescrLayout);
+  int blocks = 0;
+  auto flush = [&]() {  // the scatter pass over the block
+    for (int q = 0; q < blocks; ++q) {
+      const float* wbuf = s.weights + q * 8 * N;
+      const int32_t* cbuf = s.index + q * 2 * N;  // accumulator offset of the sample's cells
+      const int32_t* obuf = cbuf + N;             // V::cell_table_offset(o0)
+      uint32_t bits = s.bits[q];
+      while (bits) {
+        const int l = __builtin_ctz(bits);
+        bits &= bits - 1;
+        V::add_sample(hist + cbuf[l], wbuf + V::aos_lo(l), wbuf + V::aos_hi(l), obuf[l]);
+      }
+    }
+    blocks = 0;
+  };
   for (int i = i0; i <= i1; ++i) {
     const float* mag = p.mag + static_cast<ptrdiff_t>(i) * p.pitch;
     const float* ori = p.ori + static_cast<ptrdiff_t>(i) * p.pitch;
@@ -262,15 +296,16 @@ void descriptorHist(const GradientPatch& p, int radius, float cos_t, float sin_t
       if (fb < static_cast<float>(jb)) jb = static_cast<int>(fb);
       if (ja > jb) continue;
     }
-    for (int j = ja; j <= jb; j += N) {
-      const V::F jf = V::add(V::set1(static_cast<float>(j)), lanesf);
+    if (blocks + (jb - ja) / N + 1 > kDescrBlock) flush();
+    V::F jf = V::add(V::set1(static_cast<float>(ja)), lanesf);
+    for (int j = ja; j <= jb; j += N, jf = V::add(jf, vN)) {
       const V::F c_rot = V::sub(V::mul(jf, vcos), i_sin);
       const V::F r_rot = V::add(V::mul(jf, vsin), i_cos);
       V::F rbin = V::sub(V::add(r_rot, half_d), half);
       V::F cbin = V::sub(V::add(c_rot, half_d), half);
       const V::M inside = V::mand(V::mand(V::gt(rbin, lo), V::lt(rbin, hi)),
                                   V::mand(V::gt(cbin, lo), V::lt(cbin, hi)));
-      uint32_t bits = V::bits(V::mand(inside, V::first_lanes(jb - j + 1)));
+      const uint32_t bits = V::bits(V::mand(inside, V::first_lanes(jb - j + 1)));
       if (!bits) continue;
       const V::F w = expV(V::mul(V::add(V::mul(c_rot, c_rot), V::mul(r_rot, r_rot)), vexp));
       V::F obin = V::mul(V::sub(V::load(ori + j), vori), vbins);
@@ -279,9 +314,8 @@ void descriptorHist(const GradientPatch& p, int radius, float cos_t, float sin_t
       rbin = V::sub(rbin, r0f);
       cbin = V::sub(cbin, c0f);
       obin = V::sub(obin, o0f);
-      V::I o0 = V::to_int(o0f);
-      o0 = V::iselect(V::ilt(o0, izero), V::iadd(o0, vn), o0);
-      o0 = V::iselect(V::ige(o0, vn), V::isub(o0, vn), o0);
+      // o0 in [-8, 8]: & 7 is OpenCV's wrap (o0 < 0: + n; o0 >= n: - n).
+      const V::I o0 = V::iand(V::to_int(o0f), seven);
       const V::F v_r1 = V::mul(m, rbin), v_r0 = V::sub(m, v_r1);
       const V::F v_rc11 = V::mul(v_r1, cbin), v_rc10 = V::sub(v_r1, v_rc11);
       const V::F v_rc01 = V::mul(v_r0, cbin), v_rc00 = V::sub(v_r0, v_rc01);
@@ -289,21 +323,28 @@ void descriptorHist(const GradientPatch& p, int radius, float cos_t, float sin_t
       const V::F v_rco101 = V::mul(v_rc10, obin), v_rco100 = V::sub(v_rc10, v_rco101);
       const V::F v_rco011 = V::mul(v_rc01, obin), v_rco010 = V::sub(v_rc01, v_rco011);
       const V::F v_rco001 = V::mul(v_rc00, obin), v_rco000 = V::sub(v_rc00, v_rco001);
-      V::istore(cbuf, V::imul(V::iadd(V::imul(V::iadd(V::to_int(r0f), one), dp2), V::iadd(V::to_int(c0f), one)),
-                              V::seti(n)));
-      V::istore(obuf, V::cell_table_offset(o0));
-      V::transpose8(v_rco000, v_rco001, v_rco010, v_rco011, v_rco100, v_rco101, v_rco110, v_rco111, wbuf);
-      while (bits) {
-        const int l = __builtin_ctz(bits);
-        bits &= bits - 1;
-        float* h = hist + (sample++ & (kDescrCopies - 1)) * (kDescrCells * n) + cbuf[l];
-        V::add_sample(h, wbuf + V::aos_lo(l), wbuf + V::aos_hi(l), obuf[l]);
-      }
+      // Offset rr * 48 + cc * 8 + (cc odd) * 280, rr = r0 + 1, cc = c0 + 1 (exact small integers).
+      const V::F rr = V::add(r0f, f1), cc = V::add(c0f, f1);
+      const V::F parity = V::fma(V::floor(V::mul(cc, fhalf)), fm2, cc);
+      const V::F off = V::fma(parity, f280, V::fma(rr, f48, V::mul(cc, f8)));
+      int32_t* cbuf = s.index + blocks * 2 * N;
+      const V::I copy = V::iand(V::to_int(jf), copies);
+      V::istore(cbuf, V::iadd(V::to_int(off), V::imul(copy, layout)));
+      V::istore(cbuf + N, V::cell_table_offset(o0));
+      V::transpose8(v_rco000, v_rco001, v_rco010, v_rco011, v_rco100, v_rco101, v_rco110, v_rco111,
+                    s.weights + blocks * 8 * N);
+      s.bits[blocks++] = bits;
     }
   }
+  flush();
+  // Sum the copies, then the odd grid into the even one (cell (rr, cc) of the odd grid sits one
+  // cell to the left).
   for (int c = 1; c < kDescrCopies; ++c)
-    for (int b = 0; b < kDescrCells * n; b += N)
-      V::store(hist + b, V::add(V::load(hist + b), V::load(hist + c * kDescrCells * n + b)));
+    for (int b = 0; b < kDescrLayout; b += N)
+      V::store(hist + b, V::add(V::load(hist + b), V::load(hist + c * kDescrLayout + b)));
+  for (int rr = 0; rr < d + 2; ++rr)
+    for (int b = 8; b < 48; b += N)
+      V::store(hist + rr * 48 + b, V::add(V::load(hist + rr * 48 + b), V::load(hist + 288 + rr * 48 + b - 8)));
 }
 
 const Kernels kTable = {kIsaName,   rowFilter,    colFilter,       upsampleRow,   dogRow,

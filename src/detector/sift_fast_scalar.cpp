@@ -45,6 +45,7 @@ struct V {
   static I iadd(I a, I b) { return a + b; }
   static I isub(I a, I b) { return a - b; }
   static I imul(I a, I b) { return a * b; }
+  static I iand(I a, I b) { return a & b; }
   static M gt(F a, F b) { return a > b; }
   static M lt(F a, F b) { return a < b; }
   static M ge(F a, F b) { return a >= b; }
@@ -67,8 +68,9 @@ struct V {
   static I cell_table_offset(I o0) { return o0; }
   static int aos_lo(int) { return 0; }
   static int aos_hi(int) { return 4; }
-  /// Adds a descriptor sample to cells (r0, c0), (r0, c0+1), (r0+1, c0), (r0+1, c0+1) at h:
-  /// bins o0 and o0+1 (mod 8) take lo[0], lo[1] / lo[2], lo[3] / hi[0], hi[1] / hi[2], hi[3].
+  /// Adds a descriptor sample to its cell pairs at h (cells (r0, c0), (r0, c0+1)) and h + 48
+  /// (row r0 + 1): bins o0 and o0+1 (mod 8) take lo[0], lo[1] / lo[2], lo[3] / hi[0], hi[1] /
+  /// hi[2], hi[3].
   static void add_sample(float* h, const float* lo, const float* hi, int o0) {
     const int o1 = (o0 + 1) & 7;
     h[o0] += lo[0];
