@@ -240,7 +240,7 @@ Workspace& workspace() {
 
 /// Per-thread scratch of the keypoint stages.
 struct KeypointScratch {
-  Buffer hist, weights;
+  Buffer hist, weights, gauss;
   std::vector<int32_t> index;
   std::vector<uint32_t> bits;
 };
@@ -541,7 +541,7 @@ void ensureGradients(const si::Kernels& K, const Octave& oct, int layer, int r0,
 
 /// The keypoints (one per orientation peak) of an interpolated extremum, appended to *out.
 void orientations(const si::Kernels& K, const Params& P, const Octave& oct, const Extremum& e,
-                  std::vector<Kp>* out) {
+                  KeypointScratch& s, std::vector<Kp>* out) {
   const int o = e.octave;
   Kp base;
   cv::KeyPoint& kpt = base.kp;
@@ -563,7 +563,7 @@ void orientations(const si::Kernels& K, const Params& P, const Octave& oct, cons
   float raw[kOriBins + 4];
   float* temp = raw + 2;
   if (!p.empty()) {
-    K.orientation_hist(p, radius, sigma, kOriBins, temp);
+    K.orientation_hist(p, radius, sigma, kOriBins, temp, s.gauss.get(2 * radius + 64));
   } else {
     std::fill(temp, temp + kOriBins, 0.f);
   }
@@ -609,6 +609,7 @@ void describeSpot(const si::Kernels& K, const Octave& oct, const Kp* kps, int co
   s.bits.resize(si::kDescrBlock);
   ds.index = s.index.data();
   ds.bits = s.bits.data();
+  ds.gauss = s.gauss.get(2 * radius + 64);
   for (int q = 0; q < count; ++q) {
     float ori = 360.f - kps[q].kp.angle;
     if (std::abs(ori - 360.f) < FLT_EPSILON) ori = 0.f;
@@ -817,7 +818,7 @@ void fastSiftDetectAndCompute(const cv::Mat& gray8, const SiftOptions& opt, cons
       const int R = descriptorRadius(oct, keypointScale(P, x.layer, x.xi)) + 1;
       ensureGradients(K, oct, x.layer, x.r - R, x.r + R, x.c - R, x.c + R);
       const size_t first = part.kps.size();
-      orientations(K, P, oct, x, &part.kps);
+      orientations(K, P, oct, x, s, &part.kps);
       size_t kept = first;
       for (size_t i = first; i < part.kps.size(); ++i)
         if (wanted(part.kps[i])) part.kps[kept++] = part.kps[i];

@@ -36,6 +36,7 @@ struct DescriptorScratch {
   float* weights = nullptr;  ///< kDescrBlock x 8 x 16 floats
   int32_t* index = nullptr;  ///< kDescrBlock x 2 x 16 ints
   uint32_t* bits = nullptr;  ///< kDescrBlock lane masks
+  float* gauss = nullptr;    ///< 2 x radius + 48 floats (the separable Gaussian weight)
 };
 /// The descriptor histogram: (4 + 2) x (4 + 2) spatial cells (a border cell each side) x 8 bins,
 /// accumulated in kDescrCopies interleaved copies (a power of two) of kDescrLayout floats.
@@ -73,8 +74,10 @@ struct Kernels {
   void (*gradient_rows)(const float* img, int stride, float* mag, float* ori, int y0, int y1, int x0,
                         int x1);
   /// OpenCV's orientation histogram (n bins, unsmoothed) of the patch samples with |i|, |j| <=
-  /// radius, weighted by exp(-(i^2 + j^2) / (2 sigma^2)); hist has n floats (cleared here).
-  void (*orientation_hist)(const GradientPatch& p, int radius, float sigma, int n, float* hist);
+  /// radius, weighted by exp(-(i^2 + j^2) / (2 sigma^2)); hist has n floats (cleared here);
+  /// gauss: scratch of 2 x radius + 48 floats.
+  void (*orientation_hist)(const GradientPatch& p, int radius, float sigma, int n, float* hist,
+                           float* gauss);
   /// OpenCV's raw descriptor histogram: hist has kDescrCopies x kDescrLayout floats, 64-byte
   /// aligned (scratch, cleared here; the result is in the first kDescrCells x 8), cell
   /// (r + 1) * 6 + (c + 1) for the 4x4 grid; cos_t, sin_t are cos/sin of the descriptor angle

@@ -193,23 +193,30 @@ void gradientRows(const float* img, int stride, float* mag, float* ori, int y0, 
   }
 }
 
-void orientationHist(const GradientPatch& p, int radius, float sigma, int n, float* hist) {
+// OpenCV's orientation histogram, the Gaussian weight exp(-(i^2 + j^2) / (2 sigma^2)) taken as
+// g(i) g(j) (g computed once per call; differs from OpenCV's exp32f in the last bits, as any
+// exp does). Samples are added in row-major order, as OpenCV does.
+void orientationHist(const GradientPatch& p, int radius, float sigma, int n, float* hist, float* gauss) {
   constexpr int N = V::N;
   const float expf_scale = -1.f / (2.f * sigma * sigma);
   for (int b = 0; b < n; ++b) hist[b] = 0.f;
   const int i0 = p.i0 > -radius ? p.i0 : -radius, i1 = p.i1 < radius ? p.i1 : radius;
   const int j0 = p.j0 > -radius ? p.j0 : -radius, j1 = p.j1 < radius ? p.j1 : radius;
-  const V::F nd360 = V::set1(n / 360.f), vscale = V::set1(expf_scale);
-  const V::I vn = V::seti(n), izero = V::seti(0), lanes = V::iota_i();
+  const V::F nd360 = V::set1(n / 360.f), vscale = V::set1(expf_scale), lanesf = V::iota_f();
+  const V::I vn = V::seti(n), izero = V::seti(0);
+  float* g = gauss + radius + 16;
+  for (int k = -radius; k <= radius; k += N) {
+    const V::F kf = V::add(V::set1(static_cast<float>(k)), lanesf);
+    V::store(g + k, expV(V::mul(V::mul(kf, kf), vscale)));
+  }
   alignas(64) int32_t bin_buf[V::N];
   alignas(64) float val_buf[V::N];
   for (int i = i0; i <= i1; ++i) {
     const float* mag = p.mag + static_cast<ptrdiff_t>(i) * p.pitch;
     const float* ori = p.ori + static_cast<ptrdiff_t>(i) * p.pitch;
+    const V::F gi = V::set1(g[i]);
     for (int j = j0; j <= j1; j += N) {
-      const V::I jj = V::iadd(V::seti(j), lanes);
-      const V::I d2 = V::iadd(V::seti(i * i), V::imul(jj, jj));
-      const V::F w = expV(V::mul(V::to_float(d2), vscale));
+      const V::F w = V::mul(gi, V::load(g + j));
       V::I bin = V::to_int(V::mul(nd360, V::load(ori + j)));
       bin = V::iselect(V::ige(bin, vn), V::isub(bin, vn), bin);
       bin = V::iselect(V::ilt(bin, izero), V::iadd(bin, vn), bin);
@@ -244,11 +251,20 @@ void descriptorHist(const GradientPatch& p, int radius, float cos_t, float sin_t
   const V::F vcos = V::set1(cos_t), vsin = V::set1(sin_t), lanesf = V::iota_f();
   const V::F half_d = V::set1(static_cast<float>(d / 2)), half = V::set1(0.5f);
   const V::F lo = V::set1(-1.f), hi = V::set1(static_cast<float>(d));
-  const V::F vori = V::set1(ori_deg), vbins = V::set1(bins_per_rad), vexp = V::set1(exp_scale);
+  const V::F vori = V::set1(ori_deg), vbins = V::set1(bins_per_rad);
   const V::F f1 = V::set1(1.f), f8 = V::set1(8.f), f48 = V::set1(48.f), fhalf = V::set1(0.5f);
   const V::F fm2 = V::set1(-2.f), f280 = V::set1(280.f), vN = V::set1(static_cast<float>(N));
   const V::I seven = V::seti(7), copies = V::seti(kDescrCopies - 1), layout = V::seti(kDescrLayout);
   int blocks = 0;
+  // The Gaussian weight exp(-(c_rot^2 + r_rot^2) / 8) = g(i) g(j), g(k) = exp(-k^2 / (8 hw^2)).
+  float* gw = s.gauss + radius + 16;
+  {
+    const float g_scale = (cos_t * cos_t + sin_t * sin_t) * exp_scale;
+    for (int k = -radius; k <= radius; k += N) {
+      const V::F kf = V::add(V::set1(static_cast<float>(k)), lanesf);
+      V::store(gw + k, expV(V::mul(V::mul(kf, kf), V::set1(g_scale))));
+    }
+  }
   auto flush = [&]() {  // the scatter pass over the block
     for (int q = 0; q < blocks; ++q) {
       const float* wbuf = s.weights + q * 8 * N;
@@ -268,6 +284,7 @@ void descriptorHist(const GradientPatch& p, int radius, float cos_t, float sin_t
     const float* ori = p.ori + static_cast<ptrdiff_t>(i) * p.pitch;
     const V::F i_sin = V::set1(static_cast<float>(i) * sin_t);
     const V::F i_cos = V::set1(static_cast<float>(i) * cos_t);
+    const V::F gi = V::set1(gw[i]);
     // Columns whose rotated position can fall inside the 4x4 grid, |r_rot|, |c_rot| < d/2 + 1/2,
     // widened by one sample (the exact test below decides).
     int ja = j0, jb = j1;
@@ -307,7 +324,7 @@ void descriptorHist(const GradientPatch& p, int radius, float cos_t, float sin_t
                                   V::mand(V::gt(cbin, lo), V::lt(cbin, hi)));
       const uint32_t bits = V::bits(V::mand(inside, V::first_lanes(jb - j + 1)));
       if (!bits) continue;
-      const V::F w = expV(V::mul(V::add(V::mul(c_rot, c_rot), V::mul(r_rot, r_rot)), vexp));
+      const V::F w = V::mul(gi, V::load(gw + j));
       V::F obin = V::mul(V::sub(V::load(ori + j), vori), vbins);
       const V::F m = V::mul(V::load(mag + j), w);
       const V::F r0f = V::floor(rbin), c0f = V::floor(cbin), o0f = V::floor(obin);
