@@ -1,10 +1,11 @@
 // AVX2 + FMA kernels of the fast SIFT (8 lanes). Compiled with -mavx2 -mfma (CMakeLists.txt);
 // see sift_fast_kernels.h for the rules of these translation units.
+#include "detector/sift_fast_kernels.h"
+
+#if defined(__AVX2__) && defined(__FMA__)
 #include <immintrin.h>
 
 #include <cstdint>
-
-#include "detector/sift_fast_kernels.h"
 
 namespace refgrasp::detector::sift_internal {
 namespace {
@@ -119,3 +120,9 @@ struct V {
 const Kernels& avx2Kernels() { return kTable; }
 
 }  // namespace refgrasp::detector::sift_internal
+
+#else  // not compiled for this instruction set (not x86): never chosen at run time
+namespace refgrasp::detector::sift_internal {
+const Kernels& avx2Kernels() { return scalarKernels(); }
+}  // namespace refgrasp::detector::sift_internal
+#endif

@@ -1,11 +1,12 @@
 // AVX-512 kernels of the fast SIFT (16 lanes). Compiled with -mavx512f -mavx512dq -mavx512bw
 // -mavx512vl -mavx2 -mfma (CMakeLists.txt); see sift_fast_kernels.h for the rules of these
 // translation units.
+#include "detector/sift_fast_kernels.h"
+
+#if defined(__AVX512F__) && defined(__AVX512DQ__) && defined(__AVX512BW__) && defined(__AVX512VL__)
 #include <immintrin.h>
 
 #include <cstdint>
-
-#include "detector/sift_fast_kernels.h"
 
 namespace refgrasp::detector::sift_internal {
 namespace {
@@ -119,3 +120,9 @@ struct V {
 const Kernels& avx512Kernels() { return kTable; }
 
 }  // namespace refgrasp::detector::sift_internal
+
+#else  // not compiled for this instruction set (not x86): never chosen at run time
+namespace refgrasp::detector::sift_internal {
+const Kernels& avx512Kernels() { return scalarKernels(); }
+}  // namespace refgrasp::detector::sift_internal
+#endif

@@ -90,8 +90,4 @@ const Kernels& scalarKernels();
 const Kernels& avx2Kernels();    ///< only call when the CPU has AVX2 + FMA
 const Kernels& avx512Kernels();  ///< only call when the CPU has AVX-512 F/BW/DQ/VL
 
-/// Scalar helpers shared with the per-keypoint code (same operations as the vector kernels).
-float expApprox(float x);
-float atanDeg(float y, float x);
-
 }  // namespace refgrasp::detector::sift_internal

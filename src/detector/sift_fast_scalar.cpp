@@ -89,7 +89,5 @@ struct V {
 }  // namespace
 
 const Kernels& scalarKernels() { return kTable; }
-float expApprox(float x) { return expV(x); }
-float atanDeg(float y, float x) { return atanDegV(y, x); }
 
 }  // namespace refgrasp::detector::sift_internal
