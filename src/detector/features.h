@@ -23,8 +23,9 @@ SiftImplementation defaultSiftImplementation();
 
 struct SiftOptions {
   SiftImplementation implementation = defaultSiftImplementation();
-  /// kFast only: threads inside one extraction (0 = OpenCV's pool, cv::getNumThreads(); 1 = the
-  /// calling thread only, e.g. when frames are pipelined one per core).
+  /// kFast only: 1 = the extraction runs on the calling thread only (frames pipelined one per
+  /// core); any other value = its keypoint stages also use OpenCV's thread pool
+  /// (cv::getNumThreads() threads). cv::SIFT always uses OpenCV's pool.
   int threads = 0;
   int max_features = 0;             ///< keep the strongest N by response; 0 = all
   int octave_layers = 3;            ///< scales per octave

@@ -605,7 +605,7 @@ void describeSpot(const si::Kernels& K, const Octave& oct, const Kp* kps, int co
   float* hist = s.hist.get(si::kDescrCopies * si::kDescrLayout + 64);
   si::DescriptorScratch ds;
   ds.weights = s.weights.get(si::kDescrBlock * 8 * 16 + 64);
-  s.index.resize(si::kDescrBlock * 2 * 16 + 16);
+  s.index.resize(si::kDescrBlock * 3 * 16 + 16);
   s.bits.resize(si::kDescrBlock);
   ds.index = s.index.data();
   ds.bits = s.bits.data();
@@ -618,13 +618,13 @@ void describeSpot(const si::Kernels& K, const Octave& oct, const Kp* kps, int co
     if (!p.empty()) {
       K.descriptor_hist(p, radius, cos_t, sin_t, ori, ds, hist);
     } else {
-      std::fill(hist, hist + si::kDescrCells * kDescrBins, 0.f);
+      std::fill(hist, hist + si::kDescrLayout, 0.f);
     }
     float raw[kDescrLen];
     constexpr int d = kDescrWidth, n = kDescrBins;
     for (int i = 0; i < d; ++i)
       for (int j = 0; j < d; ++j)
-        for (int b = 0; b < n; ++b) raw[(i * d + j) * n + b] = hist[((i + 1) * (d + 2) + (j + 1)) * n + b];
+        for (int b = 0; b < n; ++b) raw[(i * d + j) * n + b] = hist[b * si::kDescrCells + (i + 1) * (d + 2) + (j + 1)];
     float part[16] = {0};
     for (int b = 0; b < kDescrLen; ++b) part[b % 16] = std::fma(raw[b], raw[b], part[b % 16]);
     float nrm2 = 0;

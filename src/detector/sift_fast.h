@@ -41,8 +41,9 @@ struct FastSiftStats {
 
 struct FastSiftCall {
   SiftIsa isa = SiftIsa::kScalar;
-  /// Threads inside this one call: 1 = the caller's thread only; 0 = OpenCV's pool
-  /// (cv::getNumThreads()).
+  /// 1 = the caller's thread only; any other value = the keypoint stages (localisation,
+  /// orientation, descriptors) also run on OpenCV's pool (cv::getNumThreads() threads). The
+  /// scale-space sweep is single-threaded.
   int threads = 0;
   /// Only keypoints with size in [min_size, max_size] (work-image px) are searched for; octaves
   /// outside the range are skipped. Ignored (everything searched) when opt.max_features > 0, so

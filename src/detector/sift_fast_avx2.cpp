@@ -15,20 +15,6 @@ constexpr const char* kIsaName = "avx2";
 /// transpose8's layout: the first four weights of lane l at kAos[l] (4x4 blocks per 128 bits).
 constexpr int8_t kAos[8] = {0, 8, 16, 24, 4, 12, 20, 28};
 
-/// Per orientation bin o0: lanes o0 and o0+1 (mod 8) take sample weights (ia) 0, 1 / (ib) 2, 3.
-struct CellTables {
-  alignas(32) int32_t t[8][3][8];  ///< per o0: index a, index b, lane mask
-};
-constexpr CellTables makeCellTables() {
-  CellTables c{};
-  for (int o = 0; o < 8; ++o) {
-    const int o1 = (o + 1) & 7;
-    c.t[o][0][o] = 0, c.t[o][0][o1] = 1, c.t[o][1][o] = 2, c.t[o][1][o1] = 3;
-    c.t[o][2][o] = -1, c.t[o][2][o1] = -1;
-  }
-  return c;
-}
-constexpr CellTables kCellTables = makeCellTables();
 
 struct V {
   static constexpr int N = 8;
@@ -97,19 +83,14 @@ struct V {
   }
   static int aos_lo(int l) { return kAos[l]; }
   static int aos_hi(int l) { return 4 * N + aos_lo(l); }
-  static I cell_table_offset(I o0) { return _mm256_mullo_epi32(o0, _mm256_set1_epi32(24)); }
-  /// See the scalar add_sample; the other lanes of each cell add zero.
-  static void add_sample(float* h, const float* lo, const float* hi, int table_offset) {
-    const int32_t* t = &kCellTables.t[0][0][0] + table_offset;
-    const __m256 l = _mm256_broadcast_ps(reinterpret_cast<const __m128*>(lo));
-    const __m256 u = _mm256_broadcast_ps(reinterpret_cast<const __m128*>(hi));
-    const __m256i ia = _mm256_load_si256(reinterpret_cast<const __m256i*>(t));
-    const __m256i ib = _mm256_load_si256(reinterpret_cast<const __m256i*>(t + 8));
-    const __m256 m = _mm256_castsi256_ps(_mm256_load_si256(reinterpret_cast<const __m256i*>(t + 16)));
-    _mm256_store_ps(h, _mm256_add_ps(_mm256_load_ps(h), _mm256_and_ps(_mm256_permutevar8x32_ps(l, ia), m)));
-    _mm256_store_ps(h + 8, _mm256_add_ps(_mm256_load_ps(h + 8), _mm256_and_ps(_mm256_permutevar8x32_ps(l, ib), m)));
-    _mm256_store_ps(h + 48, _mm256_add_ps(_mm256_load_ps(h + 48), _mm256_and_ps(_mm256_permutevar8x32_ps(u, ia), m)));
-    _mm256_store_ps(h + 56, _mm256_add_ps(_mm256_load_ps(h + 56), _mm256_and_ps(_mm256_permutevar8x32_ps(u, ib), m)));
+  /// See the scalar add_sample: [lo | hi] permuted to (w000, w010, .., w100, w110) and
+  /// (w001, w011, .., w101, w111), lanes 2..5 zero.
+  static void add_sample(float* a, float* b, const float* lo, const float* hi) {
+    const __m256 w = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps(lo)), _mm_loadu_ps(hi), 1);
+    const __m256i ia = _mm256_setr_epi32(0, 2, 0, 0, 0, 0, 4, 6), ib = _mm256_setr_epi32(1, 3, 1, 1, 1, 1, 5, 7);
+    const __m256 m = _mm256_castsi256_ps(_mm256_setr_epi32(-1, -1, 0, 0, 0, 0, -1, -1));
+    _mm256_storeu_ps(a, _mm256_add_ps(_mm256_loadu_ps(a), _mm256_and_ps(_mm256_permutevar8x32_ps(w, ia), m)));
+    _mm256_storeu_ps(b, _mm256_add_ps(_mm256_loadu_ps(b), _mm256_and_ps(_mm256_permutevar8x32_ps(w, ib), m)));
   }
 };
 

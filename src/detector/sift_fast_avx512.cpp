@@ -16,22 +16,6 @@ constexpr const char* kIsaName = "avx512";
 /// transpose8's layout: the first four weights of lane l at kAos[l] (4x4 blocks per 128 bits).
 constexpr int8_t kAos[16] = {0, 16, 32, 48, 4, 20, 36, 52, 8, 24, 40, 56, 12, 28, 44, 60};
 
-/// Per orientation bin o0 (cells c0 | c0+1 in the two 8-lane halves): lanes o0, o0+1 (mod 8),
-/// 8+o0, 8+(o0+1 mod 8) take sample weights 0, 1, 2, 3.
-struct CellTables {
-  alignas(64) int32_t idx[8][16];
-  uint16_t mask[8];
-};
-constexpr CellTables makeCellTables() {
-  CellTables t{};
-  for (int o = 0; o < 8; ++o) {
-    const int o1 = (o + 1) & 7;
-    t.idx[o][o] = 0, t.idx[o][o1] = 1, t.idx[o][8 + o] = 2, t.idx[o][8 + o1] = 3;
-    t.mask[o] = static_cast<uint16_t>((1u << o) | (1u << o1) | (1u << (8 + o)) | (1u << (8 + o1)));
-  }
-  return t;
-}
-constexpr CellTables kCellTables = makeCellTables();
 
 struct V {
   static constexpr int N = 16;
@@ -101,15 +85,14 @@ struct V {
   }
   static int aos_lo(int l) { return kAos[l]; }
   static int aos_hi(int l) { return 4 * N + aos_lo(l); }
-  static I cell_table_offset(I o0) { return o0; }
-  /// See the scalar add_sample; cells c0 | c0+1 are one 16-float vector, the other lanes add zero.
-  static void add_sample(float* h, const float* lo, const float* hi, int o0) {
-    const __m512i idx = _mm512_load_si512(kCellTables.idx[o0]);
-    const __mmask16 m = kCellTables.mask[o0];
-    const __m512 a = _mm512_maskz_permutexvar_ps(m, idx, _mm512_zextps128_ps512(_mm_loadu_ps(lo)));
-    const __m512 b = _mm512_maskz_permutexvar_ps(m, idx, _mm512_zextps128_ps512(_mm_loadu_ps(hi)));
-    _mm512_store_ps(h, _mm512_add_ps(_mm512_load_ps(h), a));  // 64-byte aligned cell pairs
-    _mm512_store_ps(h + 48, _mm512_add_ps(_mm512_load_ps(h + 48), b));
+  /// See the scalar add_sample: [lo | hi] permuted to (w000, w010, .., w100, w110) and
+  /// (w001, w011, .., w101, w111), lanes 2..5 zero.
+  static void add_sample(float* a, float* b, const float* lo, const float* hi) {
+    const __m256 w = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps(lo)), _mm_loadu_ps(hi), 1);
+    const __m256i ia = _mm256_setr_epi32(0, 2, 0, 0, 0, 0, 4, 6), ib = _mm256_setr_epi32(1, 3, 1, 1, 1, 1, 5, 7);
+    const __m256 m = _mm256_castsi256_ps(_mm256_setr_epi32(-1, -1, 0, 0, 0, 0, -1, -1));
+    _mm256_storeu_ps(a, _mm256_add_ps(_mm256_loadu_ps(a), _mm256_and_ps(_mm256_permutevar8x32_ps(w, ia), m)));
+    _mm256_storeu_ps(b, _mm256_add_ps(_mm256_loadu_ps(b), _mm256_and_ps(_mm256_permutevar8x32_ps(w, ib), m)));
   }
 };
 

@@ -34,15 +34,15 @@ struct GradientPatch {
 constexpr int kDescrBlock = 32;
 struct DescriptorScratch {
   float* weights = nullptr;  ///< kDescrBlock x 8 x 16 floats
-  int32_t* index = nullptr;  ///< kDescrBlock x 2 x 16 ints
+  int32_t* index = nullptr;  ///< kDescrBlock x 3 x 16 ints
   uint32_t* bits = nullptr;  ///< kDescrBlock lane masks
   float* gauss = nullptr;    ///< 2 x radius + 48 floats (the separable Gaussian weight)
 };
-/// The descriptor histogram: (4 + 2) x (4 + 2) spatial cells (a border cell each side) x 8 bins,
+/// The descriptor histogram: 8 bins x (4 + 2) x (4 + 2) spatial cells (a border cell each side),
 /// accumulated in kDescrCopies interleaved copies (a power of two) of kDescrLayout floats.
 constexpr int kDescrCells = 36;
 constexpr int kDescrCopies = 4;
-constexpr int kDescrLayout = 2 * kDescrCells * 8;
+constexpr int kDescrLayout = 8 * kDescrCells + 16;
 
 struct Kernels {
   const char* name;
@@ -78,10 +78,10 @@ struct Kernels {
   /// gauss: scratch of 2 x radius + 48 floats.
   void (*orientation_hist)(const GradientPatch& p, int radius, float sigma, int n, float* hist,
                            float* gauss);
-  /// OpenCV's raw descriptor histogram: hist has kDescrCopies x kDescrLayout floats, 64-byte
-  /// aligned (scratch, cleared here; the result is in the first kDescrCells x 8), cell
-  /// (r + 1) * 6 + (c + 1) for the 4x4 grid; cos_t, sin_t are cos/sin of the descriptor angle
-  /// divided by the histogram width; ori_deg the descriptor angle in degrees.
+  /// OpenCV's raw descriptor histogram: hist has kDescrCopies x kDescrLayout floats (scratch,
+  /// cleared here); the result is hist[bin * 36 + (r + 1) * 6 + (c + 1)] for the 4x4 grid;
+  /// cos_t, sin_t are cos/sin of the descriptor angle divided by the histogram width; ori_deg
+  /// the descriptor angle in degrees.
   void (*descriptor_hist)(const GradientPatch& p, int radius, float cos_t, float sin_t,
                           float ori_deg, const DescriptorScratch& s, float* hist);
 };

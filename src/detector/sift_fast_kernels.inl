@@ -232,13 +232,11 @@ void orientationHist(const GradientPatch& p, int radius, float sigma, int n, flo
 // orientation bins (bin 8 wraps to 0 directly). Two passes over blocks of up to kDescrBlock
 // vectors: the vector pass computes the weights of N samples at a time (iterations independent,
 // so they overlap), then the scatter pass adds them sample by sample, in row-major order.
-// Accumulator layout (kDescrLayout floats per copy, 64-byte aligned): an "even" grid where the
-// cell pairs (c, c+1), c even, and an "odd" grid where the pairs with c odd are 16 contiguous,
-// 64-byte aligned floats; cell (rr, cc) (rr, cc = 0..5, the 4x4 grid plus a border) is at
-// rr * 48 + cc * 8 in the even grid, 288 + rr * 48 + (cc - 1) * 8 in the odd one. A sample whose
-// left cell is cc writes its two cell pairs (rows rr and rr + 1) in the grid of cc's parity.
-// The sample in column j writes copy j mod kDescrCopies, so that consecutive samples do not wait
-// on each other's stores. Result: hist[cell * 8 + bin], sum of both grids and all copies.
+// Accumulator layout, bin-major: cell (rr, cc) (rr, cc = 0..5: the 4x4 grid plus a border) of
+// bin b at b * 36 + rr * 6 + cc, so that a sample's four cells (rr, cc), (rr, cc+1), (rr+1, cc),
+// (rr+1, cc+1) of one bin are floats 0, 1, 6, 7 from rr * 6 + cc (V::add_sample). The sample in
+// column j writes copy j mod kDescrCopies (kDescrLayout floats each), so that consecutive samples
+// do not wait on each other's stores. Result: hist[bin * 36 + cell], sum of the copies.
 void descriptorHist(const GradientPatch& p, int radius, float cos_t, float sin_t, float ori_deg,
                     const DescriptorScratch& s, float* hist) {
   constexpr int N = V::N;
@@ -252,9 +250,9 @@ void descriptorHist(const GradientPatch& p, int radius, float cos_t, float sin_t
   const V::F half_d = V::set1(static_cast<float>(d / 2)), half = V::set1(0.5f);
   const V::F lo = V::set1(-1.f), hi = V::set1(static_cast<float>(d));
   const V::F vori = V::set1(ori_deg), vbins = V::set1(bins_per_rad);
-  const V::F f1 = V::set1(1.f), f8 = V::set1(8.f), f48 = V::set1(48.f), fhalf = V::set1(0.5f);
-  const V::F fm2 = V::set1(-2.f), f280 = V::set1(280.f), vN = V::set1(static_cast<float>(N));
+  const V::F f7 = V::set1(7.f), f6 = V::set1(6.f), vN = V::set1(static_cast<float>(N));
   const V::I seven = V::seti(7), copies = V::seti(kDescrCopies - 1), layout = V::seti(kDescrLayout);
+  const V::I cells = V::seti(kDescrCells), one = V::seti(1);
   int blocks = 0;
   // The Gaussian weight exp(-(c_rot^2 + r_rot^2) / 8) = g(i) g(j), g(k) = exp(-k^2 / (8 hw^2)).
   float* gw = s.gauss + radius + 16;
@@ -268,13 +266,15 @@ void descriptorHist(const GradientPatch& p, int radius, float cos_t, float sin_t
   auto flush = [&]() {  // the scatter pass over the block
     for (int q = 0; q < blocks; ++q) {
       const float* wbuf = s.weights + q * 8 * N;
-      const int32_t* cbuf = s.index + q * 2 * N;  // accumulator offset of the sample's cells
-      const int32_t* obuf = cbuf + N;             // V::cell_table_offset(o0)
+      const int32_t* cbuf = s.index + q * 3 * N;  // copy * kDescrLayout + cell (rr * 6 + cc)
+      const int32_t* o0buf = cbuf + N;            // 36 o0
+      const int32_t* o1buf = cbuf + 2 * N;        // 36 ((o0 + 1) mod 8)
       uint32_t bits = s.bits[q];
       while (bits) {
         const int l = __builtin_ctz(bits);
         bits &= bits - 1;
-        V::add_sample(hist + cbuf[l], wbuf + V::aos_lo(l), wbuf + V::aos_hi(l), obuf[l]);
+        float* h = hist + cbuf[l];
+        V::add_sample(h + o0buf[l], h + o1buf[l], wbuf + V::aos_lo(l), wbuf + V::aos_hi(l));
       }
     }
     blocks = 0;
@@ -313,9 +313,9 @@ void descriptorHist(const GradientPatch& p, int radius, float cos_t, float sin_t
       if (fb < static_cast<float>(jb)) jb = static_cast<int>(fb);
       if (ja > jb) continue;
     }
-    if (blocks + (jb - ja) / N + 1 > kDescrBlock) flush();
     V::F jf = V::add(V::set1(static_cast<float>(ja)), lanesf);
     for (int j = ja; j <= jb; j += N, jf = V::add(jf, vN)) {
+      if (blocks == kDescrBlock) flush();
       const V::F c_rot = V::sub(V::mul(jf, vcos), i_sin);
       const V::F r_rot = V::add(V::mul(jf, vsin), i_cos);
       V::F rbin = V::sub(V::add(r_rot, half_d), half);
@@ -340,28 +340,22 @@ void descriptorHist(const GradientPatch& p, int radius, float cos_t, float sin_t
       const V::F v_rco101 = V::mul(v_rc10, obin), v_rco100 = V::sub(v_rc10, v_rco101);
       const V::F v_rco011 = V::mul(v_rc01, obin), v_rco010 = V::sub(v_rc01, v_rco011);
       const V::F v_rco001 = V::mul(v_rc00, obin), v_rco000 = V::sub(v_rc00, v_rco001);
-      // Offset rr * 48 + cc * 8 + (cc odd) * 280, rr = r0 + 1, cc = c0 + 1 (exact small integers).
-      const V::F rr = V::add(r0f, f1), cc = V::add(c0f, f1);
-      const V::F parity = V::fma(V::floor(V::mul(cc, fhalf)), fm2, cc);
-      const V::F off = V::fma(parity, f280, V::fma(rr, f48, V::mul(cc, f8)));
-      int32_t* cbuf = s.index + blocks * 2 * N;
+      // Cell rr * 6 + cc = (r0 + 1) * 6 + c0 + 1 (exact small integers).
+      const V::F cell = V::fma(r0f, f6, V::add(c0f, f7));
+      int32_t* cbuf = s.index + blocks * 3 * N;
       const V::I copy = V::iand(V::to_int(jf), copies);
-      V::istore(cbuf, V::iadd(V::to_int(off), V::imul(copy, layout)));
-      V::istore(cbuf + N, V::cell_table_offset(o0));
+      V::istore(cbuf, V::iadd(V::to_int(cell), V::imul(copy, layout)));
+      V::istore(cbuf + N, V::imul(o0, cells));
+      V::istore(cbuf + 2 * N, V::imul(V::iand(V::iadd(o0, one), seven), cells));
       V::transpose8(v_rco000, v_rco001, v_rco010, v_rco011, v_rco100, v_rco101, v_rco110, v_rco111,
                     s.weights + blocks * 8 * N);
       s.bits[blocks++] = bits;
     }
   }
   flush();
-  // Sum the copies, then the odd grid into the even one (cell (rr, cc) of the odd grid sits one
-  // cell to the left).
   for (int c = 1; c < kDescrCopies; ++c)
     for (int b = 0; b < kDescrLayout; b += N)
       V::store(hist + b, V::add(V::load(hist + b), V::load(hist + c * kDescrLayout + b)));
-  for (int rr = 0; rr < d + 2; ++rr)
-    for (int b = 8; b < 48; b += N)
-      V::store(hist + rr * 48 + b, V::add(V::load(hist + rr * 48 + b), V::load(hist + 288 + rr * 48 + b - 8)));
 }
 
 const Kernels kTable = {kIsaName,   rowFilter,    colFilter,       upsampleRow,   dogRow,

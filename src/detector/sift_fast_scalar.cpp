@@ -65,22 +65,20 @@ struct V {
   static void transpose8(F a, F b, F c, F d, F e, F f, F g, F h, float* out) {
     out[0] = a, out[1] = b, out[2] = c, out[3] = d, out[4] = e, out[5] = f, out[6] = g, out[7] = h;
   }
-  static I cell_table_offset(I o0) { return o0; }
   static int aos_lo(int) { return 0; }
   static int aos_hi(int) { return 4; }
-  /// Adds a descriptor sample to its cell pairs at h (cells (r0, c0), (r0, c0+1)) and h + 48
-  /// (row r0 + 1): bins o0 and o0+1 (mod 8) take lo[0], lo[1] / lo[2], lo[3] / hi[0], hi[1] /
-  /// hi[2], hi[3].
-  static void add_sample(float* h, const float* lo, const float* hi, int o0) {
-    const int o1 = (o0 + 1) & 7;
-    h[o0] += lo[0];
-    h[o1] += lo[1];
-    h[8 + o0] += lo[2];
-    h[8 + o1] += lo[3];
-    h[48 + o0] += hi[0];
-    h[48 + o1] += hi[1];
-    h[56 + o0] += hi[2];
-    h[56 + o1] += hi[3];
+  /// Adds a descriptor sample (weights lo = w000 w001 w010 w011, hi = w100 w101 w110 w111, for
+  /// cell row r/r+1, column c/c+1, bin o0/o0+1) to its cells at a (bin o0) and b (bin o0+1):
+  /// floats 0, 1, 6, 7 are cells (r, c), (r, c+1), (r+1, c), (r+1, c+1).
+  static void add_sample(float* a, float* b, const float* lo, const float* hi) {
+    a[0] += lo[0];
+    a[1] += lo[2];
+    a[6] += hi[0];
+    a[7] += hi[2];
+    b[0] += lo[1];
+    b[1] += lo[3];
+    b[6] += hi[1];
+    b[7] += hi[3];
   }
 };
 
