@@ -1,7 +1,6 @@
 #include "detector/sift_fast.h"
 
 #include <algorithm>
-#include <atomic>
 #include <cfloat>
 #include <chrono>
 #include <climits>
@@ -13,7 +12,6 @@
 #include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 #include <string>
-#include <thread>
 
 #include "detector/sift_fast_kernels.h"
 
@@ -134,20 +132,17 @@ Kernel gaussianKernel(double sigma) {
 
 /// One octave of the Gaussian scale space: `layers` planes of w x h floats. Rows carry `pad`
 /// floats of BORDER_REFLECT_101 copies on each side (the next blur reads them) plus slack for
-/// the vector kernels' over-reads. Layers 1..n_layers (where keypoints live) also get gradient
-/// planes, filled tile by tile where keypoints need them.
+/// the vector kernels' over-reads. Layers 1..n_layers (where keypoints live) of a searched octave
+/// also get gradient planes (rows 1..h-2, columns 1..w-2), computed by the sweep.
 struct Octave {
   int w = 0, h = 0, stride = 0, pad = 0;
   std::vector<float*> g;
-  std::vector<float*> mag, ori;            ///< per layer; null for layers without keypoints
-  int tiles_x = 0, tiles_y = 0;
-  std::atomic<uint8_t>* tile_state = nullptr;  ///< per layer x tile: 0 todo, 1 being computed, 2 done
+  std::vector<float*> mag, ori;  ///< per layer; null for layers without keypoints
   float* row(int layer, int y) const { return g[layer] + static_cast<ptrdiff_t>(y) * stride; }
   float at(int layer, int y, int x) const { return row(layer, y)[x]; }
   /// DoG layer `layer` (= g[layer + 1] - g[layer]) as the sweep computed it.
   float dog(int layer, int y, int x) const { return at(layer + 1, y, x) - at(layer, y, x); }
 };
-constexpr int kTile = 32;  ///< gradient tiles are kTile x kTile pixels, at multiples of kTile
 
 /// BORDER_REFLECT_101 copies in the `pad` floats left (left = true) or right of a row.
 void fillPad(float* row, int w, int pad, bool left) {
@@ -226,8 +221,6 @@ Params makeParams(const SiftOptions& opt) {
 /// Per-thread memory, reused from one call to the next.
 struct Workspace {
   Buffer pyramid, gradients, rings, dog, temp;
-  std::unique_ptr<std::atomic<uint8_t>[]> tile_state;
-  size_t tile_state_size = 0;
   std::vector<Octave> octaves;
   std::vector<Candidate> candidates;
   std::vector<int32_t> cols;
@@ -260,7 +253,8 @@ KeypointScratch& keypointScratch() {
 /// o-1. Strips keep the rows in flight (the wavefront's lag times the layers) in L2: layer i of a
 /// strip is computed on the strip widened by the columns the later layers read (their kernels'
 /// half-widths, plus 1 for the DoG's 3-tap max/min), so every pixel gets the same arithmetic as
-/// in one full-width sweep.
+/// in one full-width sweep. When `detect`, the gradient planes of layers 1..n_layers are filled
+/// too, a row as soon as the row below it exists (still in cache).
 void sweepOctave(const si::Kernels& K, const Params& P, int o, const cv::Mat& input,
                  const Octave* prev, Octave& oct, int n_build, bool detect, Workspace& ws,
                  std::vector<Candidate>* cands) {
@@ -377,6 +371,14 @@ void sweepOctave(const si::Kernels& K, const Params& P, int o, const cv::Mat& in
           if (x0 == 0) fillPad(oct.row(i, y), W, oct.pad, true);
           if (c1[i] == W) fillPad(oct.row(i, y), W, oct.pad, false);
         }
+        if (detect && i >= 1 && i <= P.n_layers) {
+          // Gradient rows y0-1 .. y1-2 (and the last valid one, h-2, with the last block), on the
+          // strip's own columns, from rows above and below that now exist.
+          const int gy0 = std::max(1, y0 - 1), gy1 = std::min(H - 1, y1 == H ? H - 1 : y1 - 1);
+          const int gx0 = std::max(1, sx0), gx1 = std::min(W - 1, sx1);
+          if (gy0 < gy1 && gx0 < gx1)
+            K.gradient_rows(oct.g[i], S, oct.mag[i], oct.ori[i], gy0, gy1, gx0, gx1);
+        }
       }
       if (!detect) continue;
       // The last layer's newest block: its DoG rows, then the extremum test of the rows whose
@@ -491,7 +493,7 @@ bool interpolate(const Octave& oct, const Params& P, int o, Candidate cand, Extr
   return true;
 }
 
-/// The gradient samples around (r, c) of `layer` within `radius` (tiles computed beforehand).
+/// The gradient samples around (r, c) of `layer` within `radius` (from the sweep's planes).
 si::GradientPatch patchAround(const Octave& oct, int layer, int r, int c, int radius) {
   si::GradientPatch p;
   const ptrdiff_t o = static_cast<ptrdiff_t>(r) * oct.stride + c;
@@ -515,28 +517,6 @@ int descriptorRadius(const Octave& oct, float scl) {
 
 float keypointScale(const Params& P, int layer, float xi) {
   return P.sigma * std::pow(2.f, (layer + xi) / P.n_layers);
-}
-
-/// Makes sure the gradient planes of `layer` hold rows [r0, r1], columns [c0, c1] (clipped):
-/// each kTile x kTile tile is computed once, by whichever thread gets to it first.
-void ensureGradients(const si::Kernels& K, const Octave& oct, int layer, int r0, int r1, int c0, int c1) {
-  const int tx0 = std::max(0, c0) / kTile, tx1 = std::min(oct.w - 1, c1) / kTile;
-  const int ty0 = std::max(0, r0) / kTile, ty1 = std::min(oct.h - 1, r1) / kTile;
-  for (int ty = ty0; ty <= ty1; ++ty)
-    for (int tx = tx0; tx <= tx1; ++tx) {
-      std::atomic<uint8_t>& st = oct.tile_state[(static_cast<size_t>(layer) * oct.tiles_y + ty) * oct.tiles_x + tx];
-      if (st.load(std::memory_order_acquire) == 2) continue;
-      uint8_t expected = 0;
-      if (st.compare_exchange_strong(expected, 1, std::memory_order_acq_rel)) {
-        const int y0 = std::max(1, ty * kTile), y1 = std::min(oct.h - 1, (ty + 1) * kTile);
-        const int x0 = tx * kTile, x1 = std::min(oct.w - 1, (tx + 1) * kTile);
-        if (y0 < y1 && x0 < x1)
-          K.gradient_rows(oct.g[layer], oct.stride, oct.mag[layer], oct.ori[layer], y0, y1, x0, x1);
-        st.store(2, std::memory_order_release);
-      } else {
-        while (st.load(std::memory_order_acquire) != 2) std::this_thread::yield();
-      }
-    }
 }
 
 /// The keypoints (one per orientation peak) of an interpolated extremum, appended to *out.
@@ -715,15 +695,6 @@ void fastSiftDetectAndCompute(const cv::Mat& gray8, const SiftOptions& opt, cons
   }
   float* mem = ws.pyramid.get(total + 64);
   float* gmem = ws.gradients.get(total_grad + 64);
-  size_t n_tiles = 0;
-  for (const Octave& oct : ws.octaves)
-    n_tiles += static_cast<size_t>(L) * ((oct.w + kTile - 1) / kTile) * ((oct.h + kTile - 1) / kTile);
-  if (n_tiles > ws.tile_state_size) {
-    ws.tile_state.reset(new std::atomic<uint8_t>[n_tiles]);
-    ws.tile_state_size = n_tiles;
-  }
-  for (size_t t = 0; t < n_tiles; ++t) ws.tile_state[t].store(0, std::memory_order_relaxed);
-  std::atomic<uint8_t>* tile_mem = ws.tile_state.get();
   std::vector<bool> search(ws.octaves.size(), true);
   for (int o = 0; o <= last_octave; ++o) {
     Octave& oct = ws.octaves[o];
@@ -742,10 +713,6 @@ void fastSiftDetectAndCompute(const cv::Mat& gray8, const SiftOptions& opt, cons
       gmem += static_cast<size_t>(oct.h) * oct.stride;
     }
     gmem += 64;
-    oct.tiles_x = (oct.w + kTile - 1) / kTile;
-    oct.tiles_y = (oct.h + kTile - 1) / kTile;
-    oct.tile_state = tile_mem;
-    tile_mem += static_cast<size_t>(L) * oct.tiles_x * oct.tiles_y;
     double lo, hi;
     octaveSizes(o, &lo, &hi);
     if (prune) search[o] = hi >= call.min_size && lo <= call.max_size;
@@ -791,7 +758,7 @@ void fastSiftDetectAndCompute(const cv::Mat& gray8, const SiftOptions& opt, cons
   stats.extrema = static_cast<int>(extrema.size());
 
   // Orientation and descriptors, in spatial order (extrema are sorted by octave, layer, row,
-  // column) so that neighbouring windows share the gradient tiles in cache.
+  // column) so that neighbouring windows share the gradient rows in cache.
   const int ne = static_cast<int>(extrema.size());
   const bool size_filter = prune && (call.min_size > 0 || call.max_size < 1e30);
   auto wanted = [&](const Kp& k) {  // size in cv::SIFT's convention (firstOctave folded in)
@@ -801,7 +768,6 @@ void fastSiftDetectAndCompute(const cv::Mat& gray8, const SiftOptions& opt, cons
   struct Part {
     std::vector<Kp> kps;
     std::vector<float> desc;  ///< 128 per keypoint when descriptors are computed here
-    double tile_ms = 0;
   };
   const bool fused = opt.max_features == 0;  // no strongest-N cut: describe every keypoint at once
   constexpr int kChunk = 32;
@@ -814,9 +780,6 @@ void fastSiftDetectAndCompute(const cv::Mat& gray8, const SiftOptions& opt, cons
     for (int q = b; q < e; ++q) {
       const Extremum& x = extrema[q];
       const Octave& oct = ws.octaves[x.octave];
-      // The descriptor is centred on round(c + xc), at most one pixel from c.
-      const int R = descriptorRadius(oct, keypointScale(P, x.layer, x.xi)) + 1;
-      ensureGradients(K, oct, x.layer, x.r - R, x.r + R, x.c - R, x.c + R);
       const size_t first = part.kps.size();
       orientations(K, P, oct, x, s, &part.kps);
       size_t kept = first;

@@ -60,7 +60,8 @@ struct Kernels {
   /// out[2w-1] = a[w-1]); a is written to blend[m0-1 .. m1].
   void (*upsample_row)(const uint8_t* row0, const uint8_t* row1, float wa, float wb, float* blend,
                        float* out, int w, int m0, int m1);
-  /// d[x] = b[x] - a[x]; mx/mn: max/min of d[x-1..x+1] for x in [1, width-1).
+  /// d[x] = b[x] - a[x]; mx/mn: max/min of d[x-1..x+1] for x in [1, width-1) (a[-1] and b[-1]
+  /// are read: rows are padded).
   void (*dog_row)(const float* a, const float* b, float* d, float* mx, float* mn, int width);
   /// Scale-space extremum test at columns [c0, c1) of the middle DoG row: |v| > thr and v >= the
   /// 3x3x3 maximum (v > 0) or v <= the 3x3x3 minimum (v < 0). mx[k]/mn[k], k = 0..8: 3-tap
@@ -69,8 +70,7 @@ struct Kernels {
   int (*extrema_row)(const float* centre, const float* const* mx, const float* const* mn, int c0,
                      int c1, float thr, int32_t* cols);
   /// Gradient magnitude and angle (see GradientPatch) of rows [y0, y1), columns [x0, x1) of
-  /// `img` into the planes mag/ori (same stride). x0 must be a multiple of 16; writes may run up
-  /// to the next multiple of 16 past x1.
+  /// `img` into the planes mag/ori (same stride); writes may run up to 15 floats past x1.
   void (*gradient_rows)(const float* img, int stride, float* mag, float* ori, int y0, int y1, int x0,
                         int x1);
   /// OpenCV's orientation histogram (n bins, unsmoothed) of the patch samples with |i|, |j| <=

@@ -144,9 +144,14 @@ void upsampleRow(const uint8_t* row0, const uint8_t* row1, float wa, float wb, f
 
 void dogRow(const float* a, const float* b, float* d, float* mx, float* mn, int width) {
   constexpr int N = V::N;
+  // The neighbours' differences are recomputed from a and b (the same subtraction, so the same
+  // values): reading d back at x +- 1 right after storing it would stall on store forwarding.
+  // Aligned from x = 0 (a[-1], b[-1] are padding; mx[0], mn[0] are not used).
   for (int x = 0; x < width; x += N) V::store(d + x, V::sub(V::load(b + x), V::load(a + x)));
-  for (int x = 1; x < width - 1; x += N) {
-    const V::F l = V::load(d + x - 1), c = V::load(d + x), r = V::load(d + x + 1);
+  for (int x = 0; x < width - 1; x += N) {
+    const V::F l = V::sub(V::load(b + x - 1), V::load(a + x - 1));
+    const V::F c = V::sub(V::load(b + x), V::load(a + x));
+    const V::F r = V::sub(V::load(b + x + 1), V::load(a + x + 1));
     V::store(mx + x, V::max(V::max(l, c), r));
     V::store(mn + x, V::min(V::min(l, c), r));
   }
