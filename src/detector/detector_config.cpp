@@ -21,6 +21,8 @@ void visitFields(O& o, Visit&& v) {
   v("sift.edge_threshold", o.sift.edge_threshold);
   v("sift.sigma", o.sift.sigma);
   v("sift.upsample", o.sift.upsample);
+  v("sift.implementation", o.sift.implementation);
+  v("sift.threads", o.sift.threads);
   v("match.matcher", o.match.matcher);
   v("match.global_ratio", o.match.global_ratio);
   v("match.local_ratio", o.match.local_ratio);
@@ -62,6 +64,7 @@ const std::map<std::string, std::string> kSectionOf = {
     {"SanityOptions", "sanity"}};
 
 const char* name(MatcherType m) { return m == MatcherType::kRatio ? "ratio" : "paper"; }
+const char* name(SiftImplementation i) { return i == SiftImplementation::kOpenCV ? "opencv" : "fast"; }
 
 }  // namespace
 
@@ -103,6 +106,10 @@ DetectorOptions loadDetectorOptions(const std::string& path) {
       const std::string s = f.string(f.root(), field);
       if (s != "paper" && s != "ratio") f.fail(field, "expected paper or ratio, got '" + s + "'");
       value = s == "ratio" ? MatcherType::kRatio : MatcherType::kPaper;
+    } else if constexpr (std::is_same_v<T, SiftImplementation>) {
+      const std::string s = f.string(f.root(), field);
+      if (s != "fast" && s != "opencv") f.fail(field, "expected fast or opencv, got '" + s + "'");
+      value = s == "opencv" ? SiftImplementation::kOpenCV : SiftImplementation::kFast;
     } else {
       static_assert(std::is_same_v<T, PoseMethod>);
       const std::string s = f.string(f.root(), field);
@@ -137,7 +144,7 @@ std::vector<std::pair<std::string, std::string>> detectorOptionValues(const Dete
     } else if constexpr (std::is_same_v<T, double>) {
       std::snprintf(buf, sizeof buf, "%.17g", value);
       out.emplace_back(field, buf);
-    } else if constexpr (std::is_same_v<T, MatcherType>) {
+    } else if constexpr (std::is_same_v<T, MatcherType> || std::is_same_v<T, SiftImplementation>) {
       out.emplace_back(field, name(value));
     } else {
       out.emplace_back(field, poseMethodName(value));

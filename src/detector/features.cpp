@@ -2,15 +2,30 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
+#include <string>
 #include <numeric>
 #include <opencv2/features2d.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "core/error.h"
+#include "detector/sift_fast.h"
 
 namespace refgrasp::detector {
 
+SiftImplementation defaultSiftImplementation() {
+  static const SiftImplementation def = [] {
+    const char* env = std::getenv("REFGRASP_SIFT");
+    return env && std::string(env) == "opencv" ? SiftImplementation::kOpenCV : SiftImplementation::kFast;
+  }();
+  return def;
+}
+
 void SiftOptions::check() const {
+  refgrasp::check(implementation == SiftImplementation::kOpenCV ||
+                      implementation == SiftImplementation::kFast,
+                  "SiftOptions.implementation", "unknown value");
+  refgrasp::check(threads >= 0, "SiftOptions.threads", "must be >= 0");
   refgrasp::check(max_features >= 0, "SiftOptions.max_features", "must be >= 0");
   refgrasp::check(octave_layers >= 1 && octave_layers <= 10, "SiftOptions.octave_layers",
                   "must be in [1, 10]");
@@ -23,7 +38,10 @@ void SiftOptions::check() const {
 }
 
 namespace {
-Features extractWhole(const cv::Mat& image, const SiftOptions& opt);
+/// Sizes are input px; keypoints outside [min_size_px, max_size_px] need not be searched for
+/// (the caller filters).
+Features extractWhole(const cv::Mat& image, const SiftOptions& opt, double min_size_px = 0,
+                      double max_size_px = 1e30);
 }
 
 Features extractSift(const cv::Mat& image, const SiftOptions& opt, const ExtractRegion& region) {
@@ -54,7 +72,7 @@ Features extractSiftUnchecked(const cv::Mat& image, const SiftOptions& opt, cons
   const int x0 = std::max(0, (roi.x - margin) / 32 * 32), y0 = std::max(0, (roi.y - margin) / 32 * 32);
   const cv::Rect crop = cv::Rect(x0, y0, roi.x + roi.width + margin - x0,
                                  roi.y + roi.height + margin - y0) & full;
-  Features c = extractWhole(image(crop), opt);
+  Features c = extractWhole(image(crop), opt, region.min_size_px, region.max_size_px);
   f.descriptors.create(0, 128, CV_32F);
   for (int i = 0; i < c.size(); ++i) {
     cv::KeyPoint kp = c.keypoints[i];
@@ -70,7 +88,8 @@ Features extractSiftUnchecked(const cv::Mat& image, const SiftOptions& opt, cons
 }
 
 namespace {
-Features extractWhole(const cv::Mat& image, const SiftOptions& opt) {
+Features extractWhole(const cv::Mat& image, const SiftOptions& opt, double min_size_px,
+                      double max_size_px) {
   cv::Mat gray;
   if (image.channels() == 3) {
     cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
@@ -96,11 +115,21 @@ Features extractWhole(const cv::Mat& image, const SiftOptions& opt) {
     f.descriptors.create(0, 128, CV_32F);
     return f;
   }
-  auto sift = cv::SIFT::create(opt.max_features, opt.octave_layers, opt.contrast_threshold,
-                               opt.edge_threshold, opt.sigma);
   std::vector<cv::KeyPoint> kps;
   cv::Mat desc;
-  sift->detectAndCompute(work, cv::noArray(), kps, desc);
+  if (opt.implementation == SiftImplementation::kFast) {
+    FastSiftCall call;
+    call.isa = bestSiftIsa();
+    call.threads = opt.threads;
+    const double to_work = opt.upsample ? 1.0 : 0.5;  // work-image px per input px
+    call.min_size = min_size_px * to_work;
+    call.max_size = max_size_px * to_work;
+    fastSiftDetectAndCompute(work, opt, call, &kps, &desc);
+  } else {
+    auto sift = cv::SIFT::create(opt.max_features, opt.octave_layers, opt.contrast_threshold,
+                                 opt.edge_threshold, opt.sigma);
+    sift->detectAndCompute(work, cv::noArray(), kps, desc);
+  }
 
   // Strongest first; ties broken by position so the order never depends on threading.
   std::vector<int> order(kps.size());

@@ -11,7 +11,22 @@
 
 namespace refgrasp::detector {
 
+/// Which SIFT computes the features. kOpenCV: cv::SIFT (OpenCV 4.6), the reference. kFast: the
+/// project's own SIMD re-implementation of the same algorithm (sift_fast.h), proven equivalent by
+/// tests/detector/test_sift_fast.cpp and several times faster.
+enum class SiftImplementation { kOpenCV, kFast };
+
+/// The default SiftOptions::implementation: kFast, unless the environment variable
+/// REFGRASP_SIFT=opencv is set (read once; for A/B runs of a whole test suite or app on the
+/// reference). Any other value than "opencv" or "fast" is ignored.
+SiftImplementation defaultSiftImplementation();
+
 struct SiftOptions {
+  SiftImplementation implementation = defaultSiftImplementation();
+  /// kFast only: 1 = the extraction runs on the calling thread only (frames pipelined one per
+  /// core); any other value = its keypoint stages also use OpenCV's thread pool
+  /// (cv::getNumThreads() threads). cv::SIFT always uses OpenCV's pool.
+  int threads = 0;
   int max_features = 0;             ///< keep the strongest N by response; 0 = all
   int octave_layers = 3;            ///< scales per octave
   double contrast_threshold = 0.04;

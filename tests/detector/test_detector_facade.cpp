@@ -297,7 +297,11 @@ class RefusingAllocator : public cv::MatAllocator {
 }  // namespace
 
 TEST(DetectorFacade, FailureInsideOpenCvGivesOkFalseAndOneLine) {
-  const Detector det = posterDetector();
+  // cv::SIFT allocates its scale space as cv::Mat, which the allocator below can refuse (the fast
+  // SIFT keeps its own workspaces).
+  DetectorOptions opt;
+  opt.sift.implementation = SiftImplementation::kOpenCV;
+  const Detector det = posterDetector(opt);
   const cv::Mat& img = poster().s.image;
   const Intrinsics cam = sceneCamera();
   for (bool opencv_error : {true, false}) {

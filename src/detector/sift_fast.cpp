@@ -1,0 +1,860 @@
+#include "detector/sift_fast.h"
+
+#include <algorithm>
+#include <cfloat>
+#include <chrono>
+#include <climits>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <memory>
+#include <numeric>
+#include <opencv2/core/utility.hpp>
+#include <opencv2/imgproc.hpp>
+#include <string>
+
+#include "detector/sift_fast_kernels.h"
+
+namespace refgrasp::detector {
+
+namespace si = sift_internal;
+
+// ------------------------------------------------------------------------------------------------
+// Instruction-set dispatch.
+
+bool siftIsaSupported(SiftIsa isa) {
+#if defined(__x86_64__) || defined(__i386__)
+  static const bool avx2 = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+  static const bool avx512 = avx2 && __builtin_cpu_supports("avx512f") &&
+                             __builtin_cpu_supports("avx512dq") && __builtin_cpu_supports("avx512bw") &&
+                             __builtin_cpu_supports("avx512vl");
+  if (isa == SiftIsa::kAvx2) return avx2;
+  if (isa == SiftIsa::kAvx512) return avx512;
+#endif
+  return isa == SiftIsa::kScalar;
+}
+
+const char* siftIsaName(SiftIsa isa) {
+  switch (isa) {
+    case SiftIsa::kAvx512: return "avx512";
+    case SiftIsa::kAvx2: return "avx2";
+    default: return "scalar";
+  }
+}
+
+SiftIsa bestSiftIsa() {
+  static const SiftIsa best = [] {
+    SiftIsa b = siftIsaSupported(SiftIsa::kAvx512) ? SiftIsa::kAvx512
+                : siftIsaSupported(SiftIsa::kAvx2) ? SiftIsa::kAvx2
+                                                   : SiftIsa::kScalar;
+    if (const char* env = std::getenv("REFGRASP_SIFT_ISA")) {
+      const std::string e = env;
+      if (e == "scalar") b = SiftIsa::kScalar;
+      if (e == "avx2" && b == SiftIsa::kAvx512) b = SiftIsa::kAvx2;
+    }
+    return b;
+  }();
+  return best;
+}
+
+namespace {
+
+const si::Kernels& kernelsFor(SiftIsa isa) {
+  if (isa == SiftIsa::kAvx512 && siftIsaSupported(isa)) return si::avx512Kernels();
+  if (isa != SiftIsa::kScalar && siftIsaSupported(SiftIsa::kAvx2)) return si::avx2Kernels();
+  return si::scalarKernels();
+}
+
+// ------------------------------------------------------------------------------------------------
+// OpenCV 4.6 constants (sift.simd.hpp).
+constexpr int kBorder = 5;            // SIFT_IMG_BORDER
+constexpr int kMaxInterpSteps = 5;    // SIFT_MAX_INTERP_STEPS
+constexpr int kOriBins = 36;          // SIFT_ORI_HIST_BINS
+constexpr float kOriSigFactor = 1.5f; // SIFT_ORI_SIG_FCTR
+constexpr float kOriRadius = 4.5f;    // SIFT_ORI_RADIUS
+constexpr float kOriPeakRatio = 0.8f; // SIFT_ORI_PEAK_RATIO
+constexpr float kDescrSclFactor = 3.f;
+constexpr float kDescrMagThr = 0.2f;
+constexpr float kIntDescrFactor = 512.f;
+constexpr int kDescrWidth = 4, kDescrBins = 8, kDescrLen = 128;
+constexpr float kInitSigma = 0.5f;    // SIFT_INIT_SIGMA
+
+int cvRoundF(float v) { return static_cast<int>(std::lrint(v)); }
+int cvRoundD(double v) { return static_cast<int>(std::lrint(v)); }
+int roundUp(int v, int a) { return (v + a - 1) / a * a; }
+
+/// cv::BORDER_REFLECT_101 index (gfedcb|abcdefgh|gfedcba).
+int reflect101(int p, int n) {
+  if (n == 1) return 0;
+  while (p < 0 || p >= n) p = p < 0 ? -p : 2 * n - 2 - p;
+  return p;
+}
+
+struct FreeDeleter {
+  void operator()(void* p) const { std::free(p); }
+};
+
+/// Grow-only 64-byte-aligned float buffer: reused across calls, so that a frame neither
+/// allocates nor page-faults once the first one has run.
+class Buffer {
+ public:
+  float* get(size_t floats) {
+    if (floats > size_) {
+      const size_t bytes = (floats * sizeof(float) + 63) / 64 * 64;
+      data_.reset(static_cast<float*>(std::aligned_alloc(64, bytes)));
+      if (!data_) throw std::bad_alloc();
+      size_ = bytes / sizeof(float);
+    }
+    return data_.get();
+  }
+
+ private:
+  std::unique_ptr<float, FreeDeleter> data_;
+  size_t size_ = 0;
+};
+
+/// A Gaussian kernel as cv::GaussianBlur builds it for a CV_32F image.
+struct Kernel {
+  int n = 1, h = 0;
+  std::vector<float> taps;    ///< n taps
+  std::vector<float> centre;  ///< taps[h + j], j = 0..h
+};
+
+Kernel gaussianKernel(double sigma) {
+  Kernel k;
+  k.n = cvRoundD(sigma * 4 * 2 + 1) | 1;  // createGaussianKernels for depth != CV_8U
+  k.h = k.n / 2;
+  const cv::Mat m = cv::getGaussianKernel(k.n, sigma, CV_32F);
+  k.taps.assign(m.ptr<float>(), m.ptr<float>() + k.n);
+  k.centre.assign(k.taps.begin() + k.h, k.taps.end());
+  return k;
+}
+
+/// One octave of the Gaussian scale space: `layers` planes of w x h floats. Rows carry `pad`
+/// floats of BORDER_REFLECT_101 copies on each side (the next blur reads them) plus slack for
+/// the vector kernels' over-reads. Layers 1..n_layers (where keypoints live) of a searched octave
+/// also get gradient planes (rows 1..h-2, columns 1..w-2), computed by the sweep.
+struct Octave {
+  int w = 0, h = 0, stride = 0, pad = 0;
+  std::vector<float*> g;
+  std::vector<float*> mag, ori;  ///< per layer; null for layers without keypoints
+  float* row(int layer, int y) const { return g[layer] + static_cast<ptrdiff_t>(y) * stride; }
+  float at(int layer, int y, int x) const { return row(layer, y)[x]; }
+  /// DoG layer `layer` (= g[layer + 1] - g[layer]) as the sweep computed it.
+  float dog(int layer, int y, int x) const { return at(layer + 1, y, x) - at(layer, y, x); }
+};
+
+/// BORDER_REFLECT_101 copies in the `pad` floats left (left = true) or right of a row.
+void fillPad(float* row, int w, int pad, bool left) {
+  if (w > pad) {
+    if (left) {
+      for (int p = 1; p <= pad; ++p) row[-p] = row[p];
+    } else {
+      for (int p = 1; p <= pad; ++p) row[w - 1 + p] = row[w - 1 - p];
+    }
+    return;
+  }
+  for (int p = 1; p <= pad; ++p) {
+    if (left) {
+      row[-p] = row[reflect101(-p, w)];
+    } else {
+      row[w - 1 + p] = row[reflect101(w - 1 + p, w)];
+    }
+  }
+}
+
+struct Candidate {
+  int layer, r, c;
+};
+
+/// An extremum after interpolation (adjustLocalExtrema).
+struct Extremum {
+  int octave, layer, r, c;  ///< octave index in the pyramid (0 = doubled image)
+  float xc, xr, xi, contr;
+  bool operator<(const Extremum& o) const {
+    if (octave != o.octave) return octave < o.octave;
+    if (layer != o.layer) return layer < o.layer;
+    if (r != o.r) return r < o.r;
+    return c < o.c;
+  }
+  bool sameSpot(const Extremum& o) const {
+    return octave == o.octave && layer == o.layer && r == o.r && c == o.c;
+  }
+};
+
+/// A keypoint with what its descriptor needs.
+struct Kp {
+  cv::KeyPoint kp;  ///< cv::SIFT's convention (firstOctave applied)
+  int octave, layer;
+  float ptf_x, ptf_y, scl;  ///< in octave px: c + xc, r + xr; sigma of the keypoint
+};
+
+struct Params {
+  int n_layers;
+  float contrast, edge, sigma;
+  int threshold;
+  std::vector<Kernel> kernels;  ///< layer i (1..n_layers+2) blurs layer i-1 by kernels[i]
+  Kernel init;                  ///< the doubled input -> layer 0 of octave 0
+};
+
+Params makeParams(const SiftOptions& opt) {
+  Params p;
+  p.n_layers = opt.octave_layers;
+  p.contrast = static_cast<float>(opt.contrast_threshold);
+  p.edge = static_cast<float>(opt.edge_threshold);
+  p.sigma = static_cast<float>(opt.sigma);
+  p.threshold = static_cast<int>(std::floor(0.5 * opt.contrast_threshold / opt.octave_layers * 255));
+  // Incremental sigmas, as buildGaussianPyramid computes them (double).
+  p.kernels.resize(p.n_layers + 3);
+  const double k = std::pow(2., 1. / p.n_layers);
+  for (int i = 1; i < p.n_layers + 3; ++i) {
+    const double sig_prev = std::pow(k, static_cast<double>(i - 1)) * opt.sigma;
+    const double sig_total = sig_prev * k;
+    p.kernels[i] = gaussianKernel(std::sqrt(sig_total * sig_total - sig_prev * sig_prev));
+  }
+  const float s = p.sigma;
+  const float sig_diff = std::sqrt(std::max(s * s - kInitSigma * kInitSigma * 4, 0.01f));
+  p.init = gaussianKernel(sig_diff);
+  return p;
+}
+
+/// Per-thread memory, reused from one call to the next.
+struct Workspace {
+  Buffer pyramid, gradients, rings, dog, temp;
+  std::vector<Octave> octaves;
+  std::vector<Candidate> candidates;
+  std::vector<int32_t> cols;
+};
+
+Workspace& workspace() {
+  thread_local Workspace ws;
+  return ws;
+}
+
+/// Per-thread scratch of the keypoint stages.
+struct KeypointScratch {
+  Buffer hist, weights, gauss;
+  std::vector<int32_t> index;
+  std::vector<uint32_t> bits;
+};
+
+KeypointScratch& keypointScratch() {
+  thread_local KeypointScratch s;
+  return s;
+}
+
+// ------------------------------------------------------------------------------------------------
+// Scale space.
+
+/// Builds layers 0..n_build-1 of octave `o` in top-to-bottom sweeps over vertical strips,
+/// kBlock rows at a time; when `detect`, also the DoG rows and the extremum test of layers
+/// 1..n_layers (candidates appended to *cands). Octave 0 starts from the 8-bit input (doubled,
+/// then blurred by params.init); octave o > 0 from every second pixel of layer n_layers of octave
+/// o-1. Strips keep the rows in flight (the wavefront's lag times the layers) in L2: layer i of a
+/// strip is computed on the strip widened by the columns the later layers read (their kernels'
+/// half-widths, plus 1 for the DoG's 3-tap max/min), so every pixel gets the same arithmetic as
+/// in one full-width sweep. When `detect`, the gradient planes of layers 1..n_layers are filled
+/// too, a row as soon as the row below it exists (still in cache).
+void sweepOctave(const si::Kernels& K, const Params& P, int o, const cv::Mat& input,
+                 const Octave* prev, Octave& oct, int n_build, bool detect, Workspace& ws,
+                 std::vector<Candidate>* cands) {
+  constexpr int kBlock = 4;         // rows per step: the column filter makes 4 rows from 2h + 4
+  constexpr int kStripWidth = 512;  // columns per strip (the last one takes the rest)
+  const int W = oct.w, H = oct.h, S = oct.stride;
+  const int L = n_build;
+  // Layer i makes block b - lag[i] at step b: by then layer i-1 has rows up to its last row + h_i.
+  std::vector<int> lag(L), halo(L, 0), ring_size(L, 0);
+  std::vector<const Kernel*> kern(L, nullptr);
+  if (o == 0) kern[0] = &P.init;
+  for (int i = 1; i < L; ++i) kern[i] = &P.kernels[i];
+  int max_h = 0;
+  for (int i = 0; i < L; ++i) {
+    const int h = kern[i] ? kern[i]->h : 0;
+    lag[i] = (i == 0 ? 0 : lag[i - 1]) + (h + kBlock - 1) / kBlock;
+    if (kern[i]) ring_size[i] = std::min(2 * h + kBlock, H);
+    max_h = std::max(max_h, h);
+  }
+  for (int i = L - 2; i >= 0; --i) halo[i] = halo[i + 1] + kern[i + 1]->h;
+  if (detect)
+    for (int& v : halo) v += 1;
+  size_t ring_floats = 0;
+  std::vector<size_t> ring_off(L, 0);
+  for (int i = 0; i < L; ++i) {
+    ring_off[i] = ring_floats;
+    ring_floats += static_cast<size_t>(ring_size[i]) * S;
+  }
+  float* const rings = ws.rings.get(ring_floats + 64);
+  // The doubled input rows, blended and padded for the init blur (octave 0 only).
+  const int up_pad = roundUp(std::max(P.init.h, 1), 16);
+  float* const up_row = ws.temp.get(static_cast<size_t>(W + 2 * up_pad + 64) + input.cols + 64);
+  float* const blend = up_row + W + 2 * up_pad + 32;
+  // DoG rows (d, 3-tap max, 3-tap min) of every DoG layer, in a ring of 8 rows: DoG rows up to
+  // y + 1 exist when the extremum test of row y runs (right after the last layer's block).
+  constexpr int kDogRing = 8;
+  const int n_dog = detect ? L - 1 : 0;
+  float* const dogs = detect ? ws.dog.get(static_cast<size_t>(n_dog) * 3 * kDogRing * S + 64) : nullptr;
+  auto dslot = [&](int k, int y, int which) {
+    return dogs + (static_cast<size_t>(k * 3 + which) * kDogRing + (y % kDogRing)) * S;
+  };
+  std::vector<const float*> rows(2 * max_h + kBlock);
+  float* outs[kBlock];
+  const float thr = static_cast<float>(P.threshold);
+  if (detect) ws.cols.resize(W + 32);
+
+  const int n_strips = std::max(1, (W + kStripWidth / 2) / kStripWidth);
+  for (int strip = 0; strip < n_strips; ++strip) {
+    const int sx0 = strip * kStripWidth, sx1 = strip + 1 == n_strips ? W : sx0 + kStripWidth;
+    // Columns [c0[i], c1[i]) of layer i; c0 a multiple of 16 for aligned vector access.
+    std::vector<int> c0(L), c1(L), filled(L, 0);
+    for (int i = 0; i < L; ++i) {
+      c0[i] = std::max(0, sx0 - halo[i]) / 16 * 16;
+      c1[i] = std::min(W, sx1 + halo[i]);
+    }
+    auto sourceRow = [&](int i, int m) -> const float* {
+      if (i > 0) return oct.row(i - 1, m);
+      // Octave 0, layer 0: row m of the doubled input (OpenCV's bilinear resize coefficients),
+      // the columns the init blur reads.
+      const int hin = input.rows, q = m / 2;
+      int r0 = q, r1 = q;
+      float wa = 1.f, wb = 0.f;
+      if (m % 2 == 0 && q > 0) {
+        r0 = q - 1;
+        wa = 0.25f;
+        wb = 0.75f;
+      } else if (m % 2 == 1 && q < hin - 1) {
+        r1 = q + 1;
+        wa = 0.75f;
+        wb = 0.25f;
+      }
+      float* out = up_row + up_pad;
+      const int h = P.init.h;
+      const int u0 = std::max(0, c0[0] - h) / 2, u1 = std::min(input.cols, (c1[0] + h + 1) / 2 + 1);
+      K.upsample_row(input.ptr<uint8_t>(r0), input.ptr<uint8_t>(r1), wa, wb, blend + 16, out, input.cols,
+                     u0, u1);
+      if (c0[0] - h < 0) fillPad(out, W, up_pad, true);
+      if (c1[0] + h > W) fillPad(out, W, up_pad, false);
+      return out;
+    };
+    const int n_blocks = (H + kBlock - 1) / kBlock;
+    int tested = kBorder;  // next row of the extremum test
+    const int tx0 = std::max(kBorder, sx0), tx1 = std::min(W - kBorder, sx1);
+    const int dx0 = std::max(0, sx0 - 1) / 16 * 16, dx1 = std::min(W, sx1 + 1);
+    for (int step = 0; step < n_blocks + lag[L - 1]; ++step) {
+      for (int i = 0; i < L; ++i) {
+        const int y0 = (step - lag[i]) * kBlock;
+        if (y0 < 0 || y0 >= H) continue;
+        const int y1 = std::min(H, y0 + kBlock);
+        const int x0 = c0[i], n = c1[i] - c0[i];
+        if (!kern[i]) {  // octave o > 0, layer 0: subsample
+          for (int y = y0; y < y1; ++y) {
+            const float* src = prev->row(P.n_layers, 2 * y);
+            float* dst = oct.row(i, y);
+            for (int x = x0; x < c1[i]; ++x) dst[x] = src[2 * x];
+            if (x0 == 0) fillPad(dst, W, oct.pad, true);
+            if (c1[i] == W) fillPad(dst, W, oct.pad, false);
+          }
+          continue;
+        }
+        const Kernel& k = *kern[i];
+        float* ring = rings + ring_off[i];
+        const int need = std::min(H - 1, y1 - 1 + k.h);
+        while (filled[i] <= need) {
+          const int m = filled[i]++;
+          K.row_filter(sourceRow(i, m) + x0 - k.h, ring + static_cast<size_t>(m % ring_size[i]) * S + x0, n,
+                       k.taps.data(), k.n);
+        }
+        for (int j = 0; j < 2 * k.h + (y1 - y0); ++j)
+          rows[j] = ring + static_cast<size_t>(reflect101(y0 + j - k.h, H) % ring_size[i]) * S + x0;
+        for (int y = y0; y < y1; ++y) outs[y - y0] = oct.row(i, y) + x0;
+        K.col_filter(rows.data(), outs, y1 - y0, n, k.centre.data(), k.h);
+        for (int y = y0; y < y1; ++y) {
+          if (x0 == 0) fillPad(oct.row(i, y), W, oct.pad, true);
+          if (c1[i] == W) fillPad(oct.row(i, y), W, oct.pad, false);
+        }
+        if (detect && i >= 1 && i <= P.n_layers) {
+          // Gradient rows y0-1 .. y1-2 (and the last valid one, h-2, with the last block), on the
+          // strip's own columns, from rows above and below that now exist.
+          const int gy0 = std::max(1, y0 - 1), gy1 = std::min(H - 1, y1 == H ? H - 1 : y1 - 1);
+          const int gx0 = std::max(1, sx0), gx1 = std::min(W - 1, sx1);
+          if (gy0 < gy1 && gx0 < gx1)
+            K.gradient_rows(oct.g[i], S, oct.mag[i], oct.ori[i], gy0, gy1, gx0, gx1);
+        }
+      }
+      if (!detect) continue;
+      // The last layer's newest block: its DoG rows, then the extremum test of the rows whose
+      // 3x3x3 neighbourhoods are now complete.
+      const int y0 = (step - lag[L - 1]) * kBlock;
+      if (y0 < 0 || y0 >= H) continue;
+      const int y1 = std::min(H, y0 + kBlock);
+      for (int y = y0; y < y1; ++y)
+        for (int k = 0; k < n_dog; ++k)
+          K.dog_row(oct.row(k, y) + dx0, oct.row(k + 1, y) + dx0, dslot(k, y, 0) + dx0, dslot(k, y, 1) + dx0,
+                    dslot(k, y, 2) + dx0, dx1 - dx0);
+      for (; tested < std::min(y1 - 1, H - kBorder); ++tested) {
+        const int yy = tested;
+        if (tx0 >= tx1) continue;
+        for (int layer = 1; layer <= P.n_layers; ++layer) {
+          const float* mx[9];
+          const float* mn[9];
+          for (int a = 0; a < 3; ++a)
+            for (int b = 0; b < 3; ++b) {
+              mx[3 * a + b] = dslot(layer - 1 + a, yy - 1 + b, 1);
+              mn[3 * a + b] = dslot(layer - 1 + a, yy - 1 + b, 2);
+            }
+          const int n = K.extrema_row(dslot(layer, yy, 0), mx, mn, tx0, tx1, thr, ws.cols.data());
+          for (int q = 0; q < n; ++q) cands->push_back({layer, yy, ws.cols[q]});
+        }
+      }
+    }
+  }
+}
+
+// ------------------------------------------------------------------------------------------------
+// Keypoint localisation (adjustLocalExtrema), in OpenCV's float expressions.
+
+/// x = H^-1 b by Cramer's rule as cv::Matx<float,3,3>::solve(DECOMP_LU) computes it; false when
+/// det(H) == 0 (OpenCV then returns zeros).
+bool solve3(const float a[3][3], const float b[3], float x[3]) {
+  float d = a[0][0] * (a[1][1] * a[2][2] - a[2][1] * a[1][2]) -
+            a[0][1] * (a[1][0] * a[2][2] - a[2][0] * a[1][2]) +
+            a[0][2] * (a[1][0] * a[2][1] - a[2][0] * a[1][1]);
+  if (d == 0) return false;
+  d = 1 / d;
+  x[0] = d * (b[0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) - a[0][1] * (b[1] * a[2][2] - a[1][2] * b[2]) +
+              a[0][2] * (b[1] * a[2][1] - a[1][1] * b[2]));
+  x[1] = d * (a[0][0] * (b[1] * a[2][2] - a[1][2] * b[2]) - b[0] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
+              a[0][2] * (a[1][0] * b[2] - b[1] * a[2][0]));
+  x[2] = d * (a[0][0] * (a[1][1] * b[2] - b[1] * a[2][1]) - a[0][1] * (a[1][0] * b[2] - b[1] * a[2][0]) +
+              b[0] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]));
+  return true;
+}
+
+/// First and second derivatives of the DoG at (layer, r, c), OpenCV's finite differences and
+/// scales (image values in [0, 1]).
+struct Derivatives {
+  float dD[3];  ///< d/dx, d/dy, d/dlayer
+  float dxx, dyy, dss, dxy, dxs, dys;
+};
+
+Derivatives derivatives(const Octave& oct, int layer, int r, int c) {
+  const float img_scale = 1.f / 255;
+  const float deriv_scale = img_scale * 0.5f, second_scale = img_scale, cross_scale = img_scale * 0.25f;
+  auto D = [&](int l, int y, int x) { return oct.dog(l, y, x); };
+  Derivatives d;
+  d.dD[0] = (D(layer, r, c + 1) - D(layer, r, c - 1)) * deriv_scale;
+  d.dD[1] = (D(layer, r + 1, c) - D(layer, r - 1, c)) * deriv_scale;
+  d.dD[2] = (D(layer + 1, r, c) - D(layer - 1, r, c)) * deriv_scale;
+  const float v2 = D(layer, r, c) * 2;
+  d.dxx = (D(layer, r, c + 1) + D(layer, r, c - 1) - v2) * second_scale;
+  d.dyy = (D(layer, r + 1, c) + D(layer, r - 1, c) - v2) * second_scale;
+  d.dss = (D(layer + 1, r, c) + D(layer - 1, r, c) - v2) * second_scale;
+  d.dxy = (D(layer, r + 1, c + 1) - D(layer, r + 1, c - 1) - D(layer, r - 1, c + 1) + D(layer, r - 1, c - 1)) *
+          cross_scale;
+  d.dxs = (D(layer + 1, r, c + 1) - D(layer + 1, r, c - 1) - D(layer - 1, r, c + 1) + D(layer - 1, r, c - 1)) *
+          cross_scale;
+  d.dys = (D(layer + 1, r + 1, c) - D(layer + 1, r - 1, c) - D(layer - 1, r + 1, c) + D(layer - 1, r - 1, c)) *
+          cross_scale;
+  return d;
+}
+
+/// adjustLocalExtrema: up to 5 Newton steps, then the contrast and edge tests.
+bool interpolate(const Octave& oct, const Params& P, int o, Candidate cand, Extremum* out) {
+  int layer = cand.layer, r = cand.r, c = cand.c;
+  float xi = 0, xr = 0, xc = 0;
+  int step = 0;
+  for (; step < kMaxInterpSteps; ++step) {
+    const Derivatives d = derivatives(oct, layer, r, c);
+    const float Hm[3][3] = {{d.dxx, d.dxy, d.dxs}, {d.dxy, d.dyy, d.dys}, {d.dxs, d.dys, d.dss}};
+    float X[3] = {0, 0, 0};
+    if (!solve3(Hm, d.dD, X)) X[0] = X[1] = X[2] = 0;
+    xi = -X[2];
+    xr = -X[1];
+    xc = -X[0];
+    if (std::abs(xi) < 0.5f && std::abs(xr) < 0.5f && std::abs(xc) < 0.5f) break;
+    const float big = static_cast<float>(INT_MAX / 3);
+    if (std::abs(xi) > big || std::abs(xr) > big || std::abs(xc) > big) return false;
+    c += cvRoundF(xc);
+    r += cvRoundF(xr);
+    layer += cvRoundF(xi);
+    if (layer < 1 || layer > P.n_layers || c < kBorder || c >= oct.w - kBorder || r < kBorder ||
+        r >= oct.h - kBorder)
+      return false;
+  }
+  if (step >= kMaxInterpSteps) return false;
+
+  const Derivatives d = derivatives(oct, layer, r, c);
+  const float t = d.dD[0] * xc + d.dD[1] * xr + d.dD[2] * xi;
+  const float contr = oct.dog(layer, r, c) * (1.f / 255) + t * 0.5f;
+  if (std::abs(contr) * P.n_layers < P.contrast) return false;
+  const float tr = d.dxx + d.dyy;
+  const float det = d.dxx * d.dyy - d.dxy * d.dxy;
+  if (det <= 0 || tr * tr * P.edge >= (P.edge + 1) * (P.edge + 1) * det) return false;
+  *out = {o, layer, r, c, xc, xr, xi, contr};
+  return true;
+}
+
+/// The gradient samples around (r, c) of `layer` within `radius` (from the sweep's planes).
+si::GradientPatch patchAround(const Octave& oct, int layer, int r, int c, int radius) {
+  si::GradientPatch p;
+  const ptrdiff_t o = static_cast<ptrdiff_t>(r) * oct.stride + c;
+  p.mag = oct.mag[layer] + o;
+  p.ori = oct.ori[layer] + o;
+  p.pitch = oct.stride;
+  p.i0 = std::max(-radius, 1 - r);
+  p.i1 = std::min(radius, oct.h - 2 - r);
+  p.j0 = std::max(-radius, 1 - c);
+  p.j1 = std::min(radius, oct.w - 2 - c);
+  return p;
+}
+
+/// calcSIFTDescriptor's window radius for a keypoint of sigma `scl` (octave px).
+int descriptorRadius(const Octave& oct, float scl) {
+  const float hist_width = kDescrSclFactor * scl;
+  const int radius = cvRoundF(hist_width * 1.4142135623730951f * (kDescrWidth + 1) * 0.5f);
+  return std::min(radius, static_cast<int>(std::sqrt(static_cast<double>(oct.w) * oct.w +
+                                                      static_cast<double>(oct.h) * oct.h)));
+}
+
+float keypointScale(const Params& P, int layer, float xi) {
+  return P.sigma * std::pow(2.f, (layer + xi) / P.n_layers);
+}
+
+/// The keypoints (one per orientation peak) of an interpolated extremum, appended to *out.
+void orientations(const si::Kernels& K, const Params& P, const Octave& oct, const Extremum& e,
+                  KeypointScratch& s, std::vector<Kp>* out) {
+  const int o = e.octave;
+  Kp base;
+  cv::KeyPoint& kpt = base.kp;
+  kpt.pt.x = (e.c + e.xc) * (1 << o);
+  kpt.pt.y = (e.r + e.xr) * (1 << o);
+  kpt.octave = o + (e.layer << 8) + (cvRoundD((e.xi + 0.5) * 255) << 16);
+  kpt.size = keypointScale(P, e.layer, e.xi) * (1 << o) * 2;
+  kpt.response = std::abs(e.contr);
+  base.octave = o;
+  base.layer = e.layer;
+  base.ptf_x = e.c + e.xc;
+  base.ptf_y = e.r + e.xr;
+  base.scl = kpt.size * 0.5f / (1 << o);
+
+  const float scl_octv = kpt.size * 0.5f / (1 << o);
+  const int radius = cvRoundF(kOriRadius * scl_octv);
+  const float sigma = kOriSigFactor * scl_octv;
+  const si::GradientPatch p = patchAround(oct, e.layer, e.r, e.c, radius);
+  float raw[kOriBins + 4];
+  float* temp = raw + 2;
+  if (!p.empty()) {
+    K.orientation_hist(p, radius, sigma, kOriBins, temp, s.gauss.get(2 * radius + 64));
+  } else {
+    std::fill(temp, temp + kOriBins, 0.f);
+  }
+  constexpr int n = kOriBins;
+  temp[-1] = temp[n - 1];
+  temp[-2] = temp[n - 2];
+  temp[n] = temp[0];
+  temp[n + 1] = temp[1];
+  float hist[kOriBins];
+  for (int i = 0; i < n; ++i)
+    hist[i] = std::fma(temp[i - 2] + temp[i + 2], 1.f / 16.f,
+                       std::fma(temp[i - 1] + temp[i + 1], 4.f / 16.f, temp[i] * (6.f / 16.f)));
+  float omax = hist[0];
+  for (int i = 1; i < n; ++i) omax = std::max(omax, hist[i]);
+  const float mag_thr = omax * kOriPeakRatio;
+  for (int j = 0; j < n; ++j) {
+    const int l = j > 0 ? j - 1 : n - 1;
+    const int r2 = j < n - 1 ? j + 1 : 0;
+    if (hist[j] > hist[l] && hist[j] > hist[r2] && hist[j] >= mag_thr) {
+      float bin = j + 0.5f * (hist[l] - hist[r2]) / (hist[l] - 2 * hist[j] + hist[r2]);
+      bin = bin < 0 ? n + bin : bin >= n ? bin - n : bin;
+      Kp k = base;
+      k.kp.angle = 360.f - (360.f / n) * bin;
+      if (std::abs(k.kp.angle - 360.f) < FLT_EPSILON) k.kp.angle = 0.f;
+      out->push_back(k);
+    }
+  }
+}
+
+/// calcSIFTDescriptor for every keypoint of one spot (same octave, layer, position, size), the
+/// gradient patch computed once. dst rows are written as CV_32F integers 0..255.
+void describeSpot(const si::Kernels& K, const Octave& oct, const Kp* kps, int count, KeypointScratch& s,
+                  float* const* dst) {
+  const Kp& k0 = kps[0];
+  const int pr = cvRoundF(k0.ptf_y), pc = cvRoundF(k0.ptf_x);
+  const float hist_width = kDescrSclFactor * k0.scl;
+  const int radius = descriptorRadius(oct, k0.scl);
+  const si::GradientPatch p = patchAround(oct, k0.layer, pr, pc, radius);
+  float* hist = s.hist.get(si::kDescrCopies * si::kDescrLayout + 64);
+  si::DescriptorScratch ds;
+  ds.weights = s.weights.get(si::kDescrBlock * 8 * 16 + 64);
+  s.index.resize(si::kDescrBlock * 3 * 16 + 16);
+  s.bits.resize(si::kDescrBlock);
+  ds.index = s.index.data();
+  ds.bits = s.bits.data();
+  ds.gauss = s.gauss.get(2 * radius + 64);
+  for (int q = 0; q < count; ++q) {
+    float ori = 360.f - kps[q].kp.angle;
+    if (std::abs(ori - 360.f) < FLT_EPSILON) ori = 0.f;
+    const float cos_t = std::cos(ori * static_cast<float>(CV_PI / 180)) / hist_width;
+    const float sin_t = std::sin(ori * static_cast<float>(CV_PI / 180)) / hist_width;
+    if (!p.empty()) {
+      K.descriptor_hist(p, radius, cos_t, sin_t, ori, ds, hist);
+    } else {
+      std::fill(hist, hist + si::kDescrLayout, 0.f);
+    }
+    float raw[kDescrLen];
+    constexpr int d = kDescrWidth, n = kDescrBins;
+    for (int i = 0; i < d; ++i)
+      for (int j = 0; j < d; ++j)
+        for (int b = 0; b < n; ++b) raw[(i * d + j) * n + b] = hist[b * si::kDescrCells + (i + 1) * (d + 2) + (j + 1)];
+    float part[16] = {0};
+    for (int b = 0; b < kDescrLen; ++b) part[b % 16] = std::fma(raw[b], raw[b], part[b % 16]);
+    float nrm2 = 0;
+    for (float v : part) nrm2 += v;
+    const float thr = std::sqrt(nrm2) * kDescrMagThr;
+    nrm2 = 0;
+    for (int b = 0; b < kDescrLen; ++b) {
+      const float v = std::min(raw[b], thr);
+      raw[b] = v;
+      nrm2 = std::fma(v, v, nrm2);
+    }
+    nrm2 = kIntDescrFactor / std::max(std::sqrt(nrm2), FLT_EPSILON);
+    float* out = dst[q];
+    for (int b = 0; b < kDescrLen; ++b)
+      out[b] = static_cast<float>(std::clamp(cvRoundF(raw[b] * nrm2), 0, 255));
+  }
+}
+
+/// Runs body(begin, end) over [0, n) in chunks on up to `threads` threads (1 = inline).
+template <class F>
+void parallelChunks(int n, int threads, int chunk, F body) {
+  const int chunks = (n + chunk - 1) / chunk;
+  if (threads == 1 || chunks <= 1) {
+    body(0, n);
+    return;
+  }
+  cv::parallel_for_(cv::Range(0, chunks), [&](const cv::Range& r) {
+    body(r.start * chunk, std::min(n, r.end * chunk));
+  });
+}
+
+bool strongerFirst(const cv::KeyPoint& a, const cv::KeyPoint& b) {
+  if (a.response != b.response) return a.response > b.response;
+  if (a.pt.y != b.pt.y) return a.pt.y < b.pt.y;
+  if (a.pt.x != b.pt.x) return a.pt.x < b.pt.x;
+  if (a.size != b.size) return a.size < b.size;
+  return a.angle < b.angle;
+}
+
+}  // namespace
+
+void fastSiftDetectAndCompute(const cv::Mat& gray8, const SiftOptions& opt, const FastSiftCall& call,
+                              std::vector<cv::KeyPoint>* keypoints, cv::Mat* descriptors) {
+  CV_Assert(gray8.type() == CV_8UC1 && !gray8.empty());
+  using Clock = std::chrono::steady_clock;
+  auto ms = [](Clock::time_point a, Clock::time_point b) {
+    return std::chrono::duration<double, std::milli>(b - a).count();
+  };
+  FastSiftStats stats;
+  const si::Kernels& K = kernelsFor(call.isa);
+  const Params P = makeParams(opt);
+  const int threads = call.threads;
+  Workspace& ws = workspace();
+
+  // Octave sizes and the layers each needs (doubled input: firstOctave = -1).
+  const int W0 = gray8.cols * 2, H0 = gray8.rows * 2;
+  const int n_octaves = cvRoundD(std::log(static_cast<double>(std::min(W0, H0))) / std::log(2.) - 2) + 1;
+  const int L = P.n_layers + 3;
+  // Keypoint size of octave o (cv::SIFT convention, work-image px): sigma 2^((layer+xi)/n) 2^o,
+  // layer + xi in (0.5, n + 0.5).
+  const bool prune = opt.max_features == 0;
+  auto octaveSizes = [&](int o, double* lo, double* hi) {
+    *lo = P.sigma * std::pow(2., 0.5 / P.n_layers) * std::ldexp(1., o) * 0.999;
+    *hi = P.sigma * std::pow(2., (P.n_layers + 0.5) / P.n_layers) * std::ldexp(1., o) * 1.001;
+  };
+  int last_octave = n_octaves - 1;
+  if (prune) {
+    while (last_octave >= 0) {
+      double lo, hi;
+      octaveSizes(last_octave, &lo, &hi);
+      if (lo <= call.max_size) break;
+      --last_octave;
+    }
+  }
+  ws.octaves.resize(std::max(0, last_octave + 1));
+  int max_h = P.init.h;
+  for (const Kernel& k : P.kernels) max_h = std::max(max_h, k.h);
+  const int pad = roundUp(std::max(max_h, 1), 16);
+  size_t total = 0, total_grad = 0;
+  for (int o = 0, w = W0, h = H0; o <= last_octave; ++o, w /= 2, h /= 2) {
+    Octave& oct = ws.octaves[o];
+    oct.w = w;
+    oct.h = h;
+    oct.pad = pad;
+    oct.stride = roundUp(w + 2 * pad + 32, 16);
+    total += static_cast<size_t>(L) * h * oct.stride + 64;
+    total_grad += static_cast<size_t>(2 * P.n_layers) * h * oct.stride + 64;
+  }
+  float* mem = ws.pyramid.get(total + 64);
+  float* gmem = ws.gradients.get(total_grad + 64);
+  std::vector<bool> search(ws.octaves.size(), true);
+  for (int o = 0; o <= last_octave; ++o) {
+    Octave& oct = ws.octaves[o];
+    oct.g.assign(L, nullptr);
+    oct.mag.assign(L, nullptr);
+    oct.ori.assign(L, nullptr);
+    for (int i = 0; i < L; ++i) {
+      oct.g[i] = mem + pad;
+      mem += static_cast<size_t>(oct.h) * oct.stride;
+    }
+    mem += 64;
+    for (int i = 1; i <= P.n_layers; ++i) {
+      oct.mag[i] = gmem + pad;
+      gmem += static_cast<size_t>(oct.h) * oct.stride;
+      oct.ori[i] = gmem + pad;
+      gmem += static_cast<size_t>(oct.h) * oct.stride;
+    }
+    gmem += 64;
+    double lo, hi;
+    octaveSizes(o, &lo, &hi);
+    if (prune) search[o] = hi >= call.min_size && lo <= call.max_size;
+  }
+
+  // Scale space and extrema, octave by octave.
+  std::vector<Extremum> extrema;
+  for (int o = 0; o <= last_octave; ++o) {
+    Octave& oct = ws.octaves[o];
+    const bool detect = search[o] && oct.w > 2 * kBorder && oct.h > 2 * kBorder;
+    // Layers above n_layers only feed the DoG; an octave not searched needs layers 0..n_layers
+    // (layer n_layers is the next octave's base), and only if a later octave is built.
+    const int n_build = detect ? L : (o < last_octave ? P.n_layers + 1 : 0);
+    if (n_build == 0) continue;
+    const auto t0 = Clock::now();
+    ws.candidates.clear();
+    sweepOctave(K, P, o, gray8, o > 0 ? &ws.octaves[o - 1] : nullptr, oct, n_build, detect, ws,
+                &ws.candidates);
+    const auto t1 = Clock::now();
+    stats.scale_space_ms += ms(t0, t1);
+    ++stats.octaves_built;
+    if (!detect) continue;
+    ++stats.octaves_searched;
+    const size_t first = extrema.size();
+    const int nc = static_cast<int>(ws.candidates.size());
+    stats.candidates += nc;
+    std::vector<std::vector<Extremum>> parts(std::max(1, (nc + 511) / 512));
+    parallelChunks(nc, threads, 512, [&](int b, int e) {
+      std::vector<Extremum>& part = parts[b / 512];
+      for (int q = b; q < e; ++q) {
+        Extremum x;
+        if (interpolate(oct, P, o, ws.candidates[q], &x)) part.push_back(x);
+      }
+    });
+    for (const auto& part : parts) extrema.insert(extrema.end(), part.begin(), part.end());
+    // Several candidates can converge on the same spot: cv::SIFT keeps one (removeDuplicatedSorted).
+    std::sort(extrema.begin() + first, extrema.end());
+    extrema.erase(std::unique(extrema.begin() + first, extrema.end(),
+                              [](const Extremum& a, const Extremum& b) { return a.sameSpot(b); }),
+                  extrema.end());
+    stats.localise_ms += ms(t1, Clock::now());
+  }
+  stats.extrema = static_cast<int>(extrema.size());
+
+  // Orientation and descriptors, in spatial order (extrema are sorted by octave, layer, row,
+  // column) so that neighbouring windows share the gradient rows in cache.
+  const int ne = static_cast<int>(extrema.size());
+  const bool size_filter = prune && (call.min_size > 0 || call.max_size < 1e30);
+  auto wanted = [&](const Kp& k) {  // size in cv::SIFT's convention (firstOctave folded in)
+    const double size = k.kp.size * 0.5f;
+    return !size_filter || (size >= call.min_size && size <= call.max_size);
+  };
+  struct Part {
+    std::vector<Kp> kps;
+    std::vector<float> desc;  ///< 128 per keypoint when descriptors are computed here
+  };
+  const bool fused = opt.max_features == 0;  // no strongest-N cut: describe every keypoint at once
+  constexpr int kChunk = 32;
+  std::vector<Part> parts(std::max(1, (ne + kChunk - 1) / kChunk));
+  auto t2 = Clock::now();
+  parallelChunks(ne, threads, kChunk, [&](int b, int e) {
+    Part& part = parts[b / kChunk];
+    KeypointScratch& s = keypointScratch();
+    float* rows[64];
+    for (int q = b; q < e; ++q) {
+      const Extremum& x = extrema[q];
+      const Octave& oct = ws.octaves[x.octave];
+      const size_t first = part.kps.size();
+      orientations(K, P, oct, x, s, &part.kps);
+      size_t kept = first;
+      for (size_t i = first; i < part.kps.size(); ++i)
+        if (wanted(part.kps[i])) part.kps[kept++] = part.kps[i];
+      part.kps.resize(kept);
+      if (!fused || kept == first) continue;
+      const int cnt = static_cast<int>(kept - first);
+      part.desc.resize(part.kps.size() * kDescrLen);
+      for (int i = 0; i < cnt; ++i) rows[i] = part.desc.data() + (first + i) * kDescrLen;
+      for (int i = 0; i < cnt; i += 64)
+        describeSpot(K, oct, &part.kps[first + i], std::min(64, cnt - i), s, rows + i);
+    }
+  });
+  std::vector<Kp> kps;
+  std::vector<const float*> desc_of;  // fused: each keypoint's descriptor
+  for (const Part& part : parts) {
+    for (size_t i = 0; i < part.kps.size(); ++i) {
+      kps.push_back(part.kps[i]);
+      if (fused) desc_of.push_back(part.desc.data() + i * kDescrLen);
+    }
+  }
+  // cv::SIFT's convention: firstOctave = -1 folded into octave, position and size.
+  for (Kp& k : kps) {
+    k.kp.octave = (k.kp.octave & ~255) | ((k.kp.octave - 1) & 255);
+    k.kp.pt *= 0.5f;
+    k.kp.size *= 0.5f;
+  }
+  std::vector<int> order(kps.size());
+  std::iota(order.begin(), order.end(), 0);
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return strongerFirst(kps[a].kp, kps[b].kp); });
+  if (opt.max_features > 0 && static_cast<int>(order.size()) > opt.max_features) order.resize(opt.max_features);
+  const int nk = static_cast<int>(order.size());
+  auto t4 = Clock::now();
+  descriptors->create(nk, kDescrLen, CV_32F);
+  stats.describe_ms = ms(t2, t4);
+  if (fused) {
+    for (int q = 0; q < nk; ++q) std::memcpy(descriptors->ptr<float>(q), desc_of[order[q]], kDescrLen * sizeof(float));
+  } else {
+    // Descriptors of the keypoints kept, spot by spot in spatial order (kps is in that order).
+    std::vector<int> kept(order);
+    std::sort(kept.begin(), kept.end());
+    std::vector<int> row_of(kps.size(), -1);
+    for (int q = 0; q < nk; ++q) row_of[order[q]] = q;
+    std::vector<int> spot_start;
+    for (size_t i = 0; i < kept.size(); ++i) {
+      const Kp& k = kps[kept[i]];
+      const Kp* p = i ? &kps[kept[i - 1]] : nullptr;
+      if (!p || k.octave != p->octave || k.layer != p->layer || k.ptf_x != p->ptf_x ||
+          k.ptf_y != p->ptf_y || k.scl != p->scl)
+        spot_start.push_back(static_cast<int>(i));
+    }
+    spot_start.push_back(static_cast<int>(kept.size()));
+    const int ns = static_cast<int>(spot_start.size()) - 1;
+    parallelChunks(ns, threads, 32, [&](int b, int e) {
+      KeypointScratch& s = keypointScratch();
+      std::vector<Kp> group;
+      float* rows[64];
+      for (int sp = b; sp < e; ++sp) {
+        group.clear();
+        for (int i = spot_start[sp]; i < spot_start[sp + 1]; ++i) group.push_back(kps[kept[i]]);
+        const int cnt = static_cast<int>(group.size());
+        for (int i = 0; i < cnt; ++i) rows[i] = descriptors->ptr<float>(row_of[kept[spot_start[sp] + i]]);
+        for (int i = 0; i < cnt; i += 64)
+          describeSpot(K, ws.octaves[group[0].octave], &group[i], std::min(64, cnt - i), s, rows + i);
+      }
+    });
+  }
+  const auto t5 = Clock::now();
+  if (!fused) stats.describe_ms += ms(t4, t5);  // the kept keypoints' descriptors
+  keypoints->resize(nk);
+  for (int q = 0; q < nk; ++q) (*keypoints)[q] = kps[order[q]].kp;
+  stats.output_ms = ms(t4, Clock::now()) - (fused ? 0 : ms(t4, t5));
+  stats.keypoints = nk;
+  if (call.stats) *call.stats = stats;
+}
+
+}  // namespace refgrasp::detector
