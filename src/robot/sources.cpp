@@ -92,14 +92,14 @@ StereoRig needRig(const SourceRequest& r, const std::string& kind) {
 
 // Sets `out` from a stereo source, giving the left eye to a mono request.
 void deliverStereo(const SourceRequest& r, std::unique_ptr<StereoSource> s, OpenedSource* out) {
-  if (r.stereo)
-    out->stereo = std::move(s);
-  else
+  if (r.eyes == Eyes::kMono)
     out->mono = std::make_unique<LeftEye>(std::move(s));
+  else
+    out->stereo = std::move(s);
 }
 
 void deliverMono(const SourceRequest& r, std::unique_ptr<FrameSource> s, OpenedSource* out) {
-  if (r.stereo)
+  if (r.eyes == Eyes::kStereo)
     throw ConfigError(r.spec, "is a mono source (" + out->kind + "); stereo needs a stereo one");
   out->mono = std::move(s);
 }
@@ -152,9 +152,9 @@ OpenedSource openSource(const SourceRequest& r) {
     out.frames = static_cast<int64_t>(rec.entries().size());
     out.warning = rec.warning();
     out.has_truth = !rec.entries().empty() && !rec.entries().front().truth.empty();
-    if (rec.stereo() && r.stereo)
+    if (rec.stereo() && r.eyes != Eyes::kMono)
       out.stereo = files::makeRecordingStereoSource(std::move(rec));
-    else if (!r.stereo)
+    else if (r.eyes != Eyes::kStereo)
       out.mono = files::makeRecordingMonoSource(std::move(rec));
     else
       throw ConfigError(target, "is a mono recording; stereo needs a stereo recording");

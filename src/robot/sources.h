@@ -12,7 +12,8 @@
 //   PATH                     guessed: a folder with recording.json is a recording, a folder with
 //                            left/ and right/ subfolders is a stereo folder pair, another folder
 //                            an image folder, a file a video.
-// A mono request on a stereo source gets the left eye.
+// A mono request on a stereo source gets the left eye; a stereo request on a mono source is an
+// error; kAuto takes what the source is.
 #include <map>
 #include <memory>
 #include <optional>
@@ -23,9 +24,11 @@
 
 namespace refgrasp::robot {
 
+enum class Eyes { kMono, kStereo, kAuto };
+
 struct SourceRequest {
   std::string spec;
-  bool stereo = false;               ///< a StereoSource is wanted (else a FrameSource)
+  Eyes eyes = Eyes::kMono;           ///< what is wanted: a FrameSource, a StereoSource, or either
   /// Calibration for sources that carry none (folders, videos, webcams, the Bumblebee2):
   std::optional<Intrinsics> camera;  ///< mono
   std::optional<StereoRig> rig;      ///< stereo
@@ -38,8 +41,8 @@ struct SourceRequest {
 };
 
 struct OpenedSource {
-  std::unique_ptr<FrameSource> mono;      ///< set for a mono request
-  std::unique_ptr<StereoSource> stereo;   ///< set for a stereo request
+  std::unique_ptr<FrameSource> mono;      ///< exactly one of mono and stereo is set
+  std::unique_ptr<StereoSource> stereo;
   std::string kind;                       ///< recording, folder, folders, video, v4l2, bb2, sim
   std::string description;                ///< the resolved spec, for logs and recording.json
   std::optional<int64_t> frames;          ///< frame count of offline sources, when known

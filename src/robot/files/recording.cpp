@@ -166,7 +166,7 @@ RecordingWriter::~RecordingWriter() {
 
 WriteStatus RecordingWriter::failed(const std::string& error) {
   error_ = error;
-  return {false, error};
+  return {false, error, true};
 }
 
 WriteStatus RecordingWriter::write(const robot::StereoFrame& f, const robot::RobotState* robot) {
@@ -186,7 +186,7 @@ WriteStatus RecordingWriter::append(const std::vector<Image>& images, int64_t in
                                     Seconds stamp, const robot::CaptureState& capture,
                                     const std::vector<robot::ObjectTruth>& truth,
                                     const robot::RobotState* robot) {
-  if (!error_.empty()) return {false, error_};
+  if (!error_.empty()) return {false, error_, true};
   const std::string where = dir_ + ": frame " + std::to_string(frames_);
   // A bad frame is refused without spoiling the recording (the next good frame is written).
   for (const Image& im : images) {

@@ -48,7 +48,8 @@ struct RecordingOptions {
 
 struct WriteStatus {
   bool ok = true;
-  std::string error;  ///< one line when !ok, naming the file
+  std::string error;   ///< one line when !ok, naming the file
+  bool fatal = false;  ///< an I/O failure: every later write fails (else only this frame was refused)
 };
 
 class RecordingWriter {

@@ -188,6 +188,7 @@ TEST(Recording, AWrongFrameIsRefusedWithoutSpoilingTheRecording) {
   bad.right = noiseImage(rng, 32, 24);
   const files::WriteStatus st = w->write(bad);
   EXPECT_FALSE(st.ok);
+  EXPECT_FALSE(st.fatal);
   EXPECT_NE(st.error.find("right image is 32x24, the calibration is 64x48"), std::string::npos) << st.error;
   EXPECT_EQ(st.error.find('\n'), std::string::npos);
   EXPECT_TRUE(w->write(stereoFrame(rng, 1, rig)).ok);  // the next good frame is frame 0
@@ -358,7 +359,7 @@ TEST(Recording, ADiskThatFillsIsAnErrorAndTheRecordingReadsUpToTheLastGoodFrame)
       if (i < 4) f.left = f.right = cv::Mat(480, 640, CV_8UC1, cv::Scalar(10 * i));
       const files::WriteStatus st = w->write(f);
       // Every later write fails too (the recording is not silently continued).
-      if (!st.ok) failed(st.error, i, w->write(stereoFrame(rng, i + 1, rig)).ok ? 5 : 0);
+      if (!st.ok) failed(st.error, i, !st.fatal ? 6 : w->write(stereoFrame(rng, i + 1, rig)).ok ? 5 : 0);
     }
   });
   ASSERT_EQ(run.exit_code, 0);

@@ -56,7 +56,7 @@ TEST(Sources, ARecordingIsRecognisedAndAMonoRequestGetsTheLeftEye) {
   std::optional<robot::MonoFrame> f;
   ASSERT_EQ(s.mono->grab(0, &f), ReturnType::kOk);
   EXPECT_EQ(f->image.cols, 64);
-  r.stereo = true;
+  r.eyes = robot::Eyes::kStereo;
   r.spec = "recording:" + d.string();
   s = robot::openSource(r);
   ASSERT_TRUE(s.stereo);
@@ -71,7 +71,7 @@ TEST(Sources, FoldersAndVideosNeedACalibrationAndSettingsAreChecked) {
     cv::imwrite((d / eye / "a.png").string(), cv::Mat(48, 64, CV_8UC1, cv::Scalar(1)));
   robot::SourceRequest r;
   r.spec = d.string();  // left/ and right/: a stereo folder pair
-  r.stereo = true;
+  r.eyes = robot::Eyes::kStereo;
   EXPECT_EQ(openError(r), r.spec + ": a folders source needs a stereo rig calibration (--stereo)");
   r.rig = smallRig();
   robot::OpenedSource s = robot::openSource(r);
@@ -85,7 +85,7 @@ TEST(Sources, FoldersAndVideosNeedACalibrationAndSettingsAreChecked) {
   m.spec = "folder:" + (d / "left").string();
   EXPECT_EQ(openError(m), m.spec + ": a folder source needs a camera calibration (--camera)");
   m.camera = smallCamera();
-  m.stereo = true;
+  m.eyes = robot::Eyes::kStereo;
   EXPECT_EQ(openError(m), m.spec + ": is a mono source (folder); stereo needs a stereo one");
 }
 
@@ -96,7 +96,7 @@ TEST(Sources, UnknownPathsAndKindsAreOneLineErrors) {
   r.spec = "";
   EXPECT_EQ(openError(r), "(empty): no input given");
   r.spec = "bb2:ffffffffffffffff";
-  r.stereo = true;
+  r.eyes = robot::Eyes::kStereo;
   r.rig = smallRig(640, 480);
   const std::string e = openError(r);
   EXPECT_EQ(e.rfind("bb2: no ", 0), 0u) << e;  // no camera here (or none with that GUID)
@@ -106,7 +106,7 @@ TEST(Sources, TheSimulatedCameraDeliversFramesWithGroundTruth) {
   robot::SourceRequest r;
   r.spec = std::string("sim:") + REFGRASP_SOURCE_DIR + "/config/scenarios/table_single.yaml";
   r.settings["enon"] = std::string(REFGRASP_SOURCE_DIR) + "/config/enon.yaml";
-  r.stereo = true;
+  r.eyes = robot::Eyes::kStereo;
   robot::OpenedSource s = robot::openSource(r);
   EXPECT_TRUE(s.has_truth);
   std::optional<robot::StereoFrame> f;
