@@ -28,5 +28,7 @@ grep -HnE '#include [<"](detector|servo)/' src/robot/*/*.h src/robot/*/*.cpp 2>/
 grep -HnE '#include "(detector|servo|robot)/' src/core/* && violation "core includes another module"
 grep -HnE '#include [<"]visp3?/|#include "(servo|robot)/' src/detector/* && violation "detector includes ViSP, servo or robot"
 grep -HnE '#include "robot/[a-z0-9_]+/' src/servo/* && violation "servo includes a backend header"
+# reference (make_reference) builds on core and the detector only (and ViSP), never robot or servo.
+grep -HnE '#include "(servo|robot)/' src/reference/* && violation "reference includes robot or servo"
 [ $fail -eq 0 ] && echo "layout: ok"
 exit $fail
