@@ -14,6 +14,7 @@
 #include <Eigen/Eigenvalues>
 
 #include "core/error.h"
+#include "detector/draw.h"
 #include "detector/object.h"
 
 namespace refgrasp::reference {
@@ -295,14 +296,7 @@ cv::Mat drawReference(const cv::Mat& photo, const Reference& ref, const Intrinsi
   std::vector<cv::Point> quad;
   for (const auto& p : ref.corners_px) quad.push_back(pt(p));
   cv::polylines(img, quad, true, cv::Scalar(255, 0, 255), thick, cv::LINE_AA);
-  const double len = 0.5 * std::min(ref.width_m, ref.height_m);
-  const cv::Point o = pt(cam.project(ref.cMo.t));
-  const Eigen::Vector3d axes[3] = {{len, 0, 0}, {0, len, 0}, {0, 0, len}};
-  const cv::Scalar colours[3] = {{0, 0, 255}, {0, 255, 0}, {255, 0, 0}};
-  for (int a = 0; a < 3; ++a) {
-    const Eigen::Vector3d X = ref.cMo * axes[a];
-    if (X.z() > 1e-6) cv::line(img, o, pt(cam.project(X)), colours[a], 2 * thick, cv::LINE_AA);
-  }
+  detector::drawAxes(img, cam, ref.cMo, 0.5 * std::min(ref.width_m, ref.height_m), 2 * thick);
   cv::putText(img, ref.method, {10, 10 + 18 * thick}, cv::FONT_HERSHEY_SIMPLEX, 0.5 * thick,
               cv::Scalar(0, 255, 255), thick, cv::LINE_AA);
   return img;

@@ -10,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/error.h"
+#include "detector/draw.h"
 
 namespace refgrasp::servo {
 
@@ -147,18 +148,7 @@ cv::Mat drawOverlay(const cv::Mat& image, const ReplayFrame& r, const detector::
                     cv::Scalar(0, 255, 255), 1, cv::LINE_AA);
     }
     const double len = axisLength(det.object(o.object));
-    if (o.cMo && len > 0) {
-      const Pose& P = *o.cMo;
-      const auto px = [&](const Eigen::Vector3d& Xo) {
-        const Eigen::Vector3d Xc = P * Xo;
-        return Xc.z() > 1e-6 ? std::optional<cv::Point>(pt(cam.project(Xc))) : std::nullopt;
-      };
-      const auto origin = px(Eigen::Vector3d::Zero());
-      const Eigen::Vector3d axes[3] = {{len, 0, 0}, {0, len, 0}, {0, 0, len}};
-      const cv::Scalar colours[3] = {{0, 0, 255}, {0, 255, 0}, {255, 0, 0}};  // x red, y green, z blue
-      for (int a = 0; a < 3 && origin; ++a)
-        if (const auto end = px(axes[a])) cv::line(img, *origin, *end, colours[a], 2, cv::LINE_AA);
-    }
+    if (o.cMo && len > 0) detector::drawAxes(img, cam, *o.cMo, len);
   }
   char head[96];
   std::snprintf(head, sizeof(head), "frame %lld  t %.3f s", static_cast<long long>(r.frame),
