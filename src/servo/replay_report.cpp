@@ -2,6 +2,8 @@
 
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <chrono>
+#include <thread>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -438,7 +440,10 @@ ReplayRunResult replaySource(robot::OpenedSource& src, PoseReplay& replay, Repla
       }
     }
     if (image.empty() && st == robot::ReturnType::kDeactivate) break;
-    if (image.empty() && st != robot::ReturnType::kError) continue;  // live: no new frame yet
+    if (image.empty() && st != robot::ReturnType::kError) {  // live: no new frame yet
+      std::this_thread::sleep_for(std::chrono::milliseconds(1));
+      continue;
+    }
     if (image.empty()) {
       r = replay.failed(k, {last_stamp, -1},
                         src.stereo ? src.stereo->lastError() : src.mono->lastError());
