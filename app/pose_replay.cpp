@@ -11,6 +11,7 @@
 #include "core/camera.h"
 #include "core/error.h"
 #include "detector/detector.h"
+#include "detector/detector_config.h"
 #include "robot/sources.h"
 #include "servo/replay.h"
 #include "servo/replay_report.h"
@@ -25,7 +26,8 @@ and writes into OUTDIR: poses.jsonl (one line per frame: the detect_object field
 "error"), trajectory.tum (TUM: stamp tx ty tz qx qy qz qw of cMo; truth.tum with ground truth),
 poses.csv, overlay.mp4 (or frames/*.png with --frames: outline, axes x red y green z blue, mode,
 frame number), summary.json and plot.png. The same input and options give the same poses.jsonl,
-byte for byte (timings only in summary.json "timing_ms").
+byte for byte (timings only in summary.json "timing_ms"). Detector options: --detector-config
+FILE (every field: config/detector.yaml), --matcher and --pose override it.
 Tracking: the frame-to-frame tracker of issue 8 is not wired in yet; until then every frame is
 detected (modes detect / lost) and --no-track changes nothing.
 --input: a recording folder, a video file, an image folder (sorted; optional stamps.txt), a
@@ -88,13 +90,12 @@ int main(int argc, char** argv) {
   setenv("OPENCV_FFMPEG_LOGLEVEL", "-8", 0);
   CLI::App app(std::string(kDescription) + robot::sourceSpecHelp() + kExit, "pose_replay");
   std::vector<std::string> object_files;
-  std::string camera_file, input, outdir, rig_file, matcher = "paper",
-                               pose_method = detector::poseMethodName(detector::DetectorOptions{}.pose);
+  std::string camera_file, input, outdir, rig_file, config_file, matcher, pose_method;
   bool no_track = false, png_frames = false;
-  detector::DetectorOptions dopt;
   app.add_option("--object", object_files, "object definition YAML (repeat for several objects)")
       ->required()
       ->expected(1)
+      ->allow_extra_args(false)
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   app.add_option("--camera", camera_file,
                  "intrinsics of the frames (ROS yaml / ViSP xml); default: a recording's own");
@@ -103,12 +104,15 @@ int main(int argc, char** argv) {
   app.add_option("--stereo", rig_file, "stereo rig YAML: replay both eyes (fused poses, left camera frame)");
   app.add_flag("--no-track", no_track, "detect on every frame (no tracking between detections)");
   app.add_flag("--frames", png_frames, "overlay as OUTDIR/frames/NNNNNN.png instead of overlay.mp4");
-  app.add_option("--matcher", matcher, "paper (local geometric consistency) or ratio (baseline)")
-      ->check(CLI::IsMember({"paper", "ratio"}));
-  app.add_option("--pose", pose_method, "paper or refined")->check(CLI::IsMember({"paper", "refined"}));
+  app.add_option("--detector-config", config_file,
+                 "detector options YAML (config/detector.yaml lists every field); --matcher and "
+                 "--pose override it");
+  CLI::Option* o_matcher =
+      app.add_option("--matcher", matcher, "paper (local geometric consistency) or ratio (baseline)")
+          ->check(CLI::IsMember({"paper", "ratio"}));
+  CLI::Option* o_pose =
+      app.add_option("--pose", pose_method, "paper or refined")->check(CLI::IsMember({"paper", "refined"}));
   CLI11_PARSE(app, argc, argv);
-  dopt.match.matcher = matcher == "ratio" ? detector::MatcherType::kRatio : detector::MatcherType::kPaper;
-  dopt.pose = pose_method == "paper" ? detector::PoseMethod::kPaper : detector::PoseMethod::kRefined;
   const bool stereo = !rig_file.empty();
 
   std::unique_ptr<detector::Detector> det;
@@ -116,6 +120,12 @@ int main(int argc, char** argv) {
   std::optional<Intrinsics> camera;
   std::optional<StereoRig> rig;
   try {
+    detector::DetectorOptions dopt;
+    if (!config_file.empty()) dopt = detector::loadDetectorOptions(config_file);
+    if (o_matcher->count())
+      dopt.match.matcher = matcher == "ratio" ? detector::MatcherType::kRatio : detector::MatcherType::kPaper;
+    if (o_pose->count())
+      dopt.pose = pose_method == "paper" ? detector::PoseMethod::kPaper : detector::PoseMethod::kRefined;
     det = std::make_unique<detector::Detector>(dopt);
     for (const std::string& f : object_files) det->addObject(detector::loadObjectDefinition(f));
     if (!camera_file.empty()) camera = loadCameraFile(camera_file);

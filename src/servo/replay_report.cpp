@@ -7,52 +7,36 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "core/error.h"
+#include "core/json.h"
+#include "detector/detection_json.h"
 #include "detector/draw.h"
 
 namespace refgrasp::servo {
 
 namespace fs = std::filesystem;
-using Json = nlohmann::ordered_json;  // keys in the documented order
 
 namespace {
 
 constexpr double kDeg = 180.0 / M_PI;
 
-// detect_object's pose fields. TODO(facade): the shared codec in core/json.h once it lands.
-void poseFields(const Pose& P, Json* j) {
-  (*j)["R"] = Json::array();
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) (*j)["R"].push_back(P.R(r, c));
-  (*j)["t"] = {P.t.x(), P.t.y(), P.t.z()};
-}
-
-Json poseJson(const Pose& P) {
-  Json j = Json::object();
-  poseFields(P, &j);
-  return j;
-}
-
-// detect_object's detection fields (found, homography, corners, R, t, inliers).
+// detect_object's detection fields (detector/detection_json.h): "found", then "homography",
+// "corners", "R", "t", "inliers" as detected; a tracked pose (or a fused stereo pose) replaces R
+// and t in place, corners projected from it stand in when there is no detection in this image.
 void detectionFields(const ObjectFrame& o, Json* j) {
-  (*j)["found"] = o.mode != TrackMode::kLost;
-  const detector::Detection& d = o.detection;
-  if (d.found) {
-    const Eigen::Matrix3d H = d.H / d.H(2, 2);
-    (*j)["homography"] = Json::array();
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c) (*j)["homography"].push_back(H(r, c));
+  if (o.detection.found) {
+    *j = detector::detectionJson(o.detection, *j);
+  } else {
+    (*j)["found"] = o.mode != TrackMode::kLost;
+    if (o.corners) {
+      (*j)["corners"] = Json::array();
+      for (const auto& c : *o.corners) (*j)["corners"].push_back({c.x(), c.y()});
+    }
   }
-  if (o.corners) {
-    (*j)["corners"] = Json::array();
-    for (const auto& c : *o.corners) (*j)["corners"].push_back({c.x(), c.y()});
-  }
-  if (o.cMo) poseFields(*o.cMo, j);
-  if (d.found) (*j)["inliers"] = d.inliers;
+  if (o.cMo) putPose(j, *o.cMo);
 }
 
 Eigen::Quaterniond quaternion(const Pose& P) {

@@ -184,10 +184,30 @@ TEST(PoseReplayApp, StereoPairsWithMismatchedStampsAreOneLineErrorsAndTheOthersA
   EXPECT_EQ(lines[2]["mode"], "detect");
 }
 
+TEST(PoseReplayApp, TheDetectorConfigFileIsUsedAndABadOneIsAOneLineError) {
+  const fs::path in = scratch("config_folder");
+  fs::create_directories(in);
+  const std::vector<cv::Mat> imgs = visibleFrames(2);
+  for (int i = 0; i < 2; ++i) cv::imwrite((in / ("f" + std::to_string(i) + ".png")).string(), imgs[static_cast<size_t>(i)]);
+  const fs::path cfg = refgrasp::testing::tempDir("refgrasp_test_pose_replay") / "strict.yaml";
+  std::ofstream(cfg) << "match:\n  min_inliers: 100000\n";  // nothing can be found
+  const fs::path out = scratch("out");
+  AppRun r = runApp("pose_replay", kObject + " --camera " + sceneCameraFile() + " --input " + in.string() +
+                                       " --output " + out.string() + " --detector-config " + cfg.string());
+  ASSERT_EQ(r.status, 0) << r.err;
+  for (const json& l : jsonLines(readFile(out / "poses.jsonl"))) EXPECT_EQ(l["mode"], "lost");
+  std::ofstream(cfg) << "match:\n  min_inlier: 12\n";
+  r = runApp("pose_replay", kObject + " --camera " + sceneCameraFile() + " --input " + in.string() +
+                                " --output " + out.string() + " --detector-config " + cfg.string());
+  EXPECT_EQ(r.status, 2);
+  EXPECT_EQ(lineCount(r.err), 1u) << r.err;
+  EXPECT_EQ(r.err.rfind("pose_replay: " + cfg.string() + ": match.min_inlier", 0), 0u) << r.err;
+}
+
 TEST(PoseReplayApp, HelpNamesTheOutputsAndExitCodes) {
   const AppRun r = runApp("pose_replay", "--help");
   EXPECT_EQ(r.status, 0);
   for (const char* s : {"poses.jsonl", "trajectory.tum", "overlay.mp4", "summary.json", "plot.png",
-                        "--no-track", "--stereo", "Exit status"})
+                        "--no-track", "--stereo", "--detector-config", "Exit status"})
     EXPECT_NE(r.out.find(s), std::string::npos) << s;
 }

@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "core/error.h"
+
 namespace refgrasp::files {
 
 namespace {
@@ -40,38 +42,24 @@ bool numbers(const Json& j, const char* key, Eigen::VectorXd* out, std::string* 
   return true;
 }
 
-// Sub-field reader that prefixes the field name to a nested problem.
-template <class T, class F>
-bool nested(const Json& j, const char* key, T* out, std::string* problem, F read) {
-  std::string p;
-  if (read(j[key], out, &p)) return true;
-  return fail(problem, key, p);
+// The pose at j[key] (core/json.h): false and "<key>: <field>: <problem>" when it does not fit.
+bool pose(const Json& j, const char* key, Pose* out, std::string* problem) {
+  try {
+    *out = poseFromJson(j[key], key);
+    return true;
+  } catch (const ConfigError& e) {
+    *problem = e.what();
+    return false;
+  }
 }
 
 }  // namespace
 
-Json poseToJson(const Pose& P) {
-  Json R = Json::array();
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) R.push_back(P.R(r, c));
-  return {{"R", R}, {"t", {P.t.x(), P.t.y(), P.t.z()}}};
-}
-
-bool poseFromJson(const Json& j, Pose* P, std::string* problem) {
-  if (!j.is_object()) return fail(problem, "pose", "not an object {R, t}");
-  Eigen::VectorXd R, t;
-  if (!numbers(j, "R", &R, problem, 9) || !numbers(j, "t", &t, problem, 3)) return false;
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) P->R(r, c) = R[3 * r + c];
-  P->t = t;
-  return true;
-}
-
 Json captureToJson(const robot::CaptureState& c) {
   Json j = Json::object();
   if (c.head) j["head"] = {{"pan_rad", c.head->pan_rad}, {"tilt_rad", c.head->tilt_rad}};
-  if (c.bMc) j["bMc"] = poseToJson(*c.bMc);
-  if (c.wMb_odom) j["wMb_odom"] = poseToJson(*c.wMb_odom);
+  if (c.bMc) j["bMc"] = poseJson(*c.bMc);
+  if (c.wMb_odom) j["wMb_odom"] = poseJson(*c.wMb_odom);
   return j;
 }
 
@@ -91,7 +79,7 @@ bool captureFromJson(const Json& j, robot::CaptureState* c, std::string* problem
   for (const char* key : {"bMc", "wMb_odom"}) {
     if (!j.contains(key)) continue;
     Pose P;
-    if (!nested(j, key, &P, problem, poseFromJson)) return false;
+    if (!pose(j, key, &P, problem)) return false;
     (std::string(key) == "bMc" ? c->bMc : c->wMb_odom) = P;
   }
   return true;
@@ -100,8 +88,8 @@ bool captureFromJson(const Json& j, robot::CaptureState* c, std::string* problem
 Json truthToJson(const std::vector<robot::ObjectTruth>& truth) {
   Json a = Json::array();
   for (const auto& t : truth) {
-    Json o = {{"object", t.object}, {"cMo", poseToJson(t.cMo)}};
-    if (t.rMo) o["rMo"] = poseToJson(*t.rMo);
+    Json o = {{"object", t.object}, {"cMo", poseJson(t.cMo)}};
+    if (t.rMo) o["rMo"] = poseJson(*t.rMo);
     a.push_back(o);
   }
   return a;
@@ -118,10 +106,11 @@ bool truthFromJson(const Json& j, std::vector<robot::ObjectTruth>* truth, std::s
     robot::ObjectTruth t;
     t.object = o["object"].get<std::string>();
     std::string p;
-    if (!nested(o, "cMo", &t.cMo, &p, poseFromJson)) return fail(problem, where, p);
+    if (!o.contains("cMo")) return fail(problem, where + ".cMo", "missing");
+    if (!pose(o, "cMo", &t.cMo, &p)) return fail(problem, where, p);
     if (o.contains("rMo")) {
       Pose r;
-      if (!nested(o, "rMo", &r, &p, poseFromJson)) return fail(problem, where, p);
+      if (!pose(o, "rMo", &r, &p)) return fail(problem, where, p);
       t.rMo = r;
     }
     truth->push_back(t);
@@ -131,7 +120,7 @@ bool truthFromJson(const Json& j, std::vector<robot::ObjectTruth>* truth, std::s
 
 Json robotStateToJson(const robot::RobotState& s) {
   return {{"stamp", s.stamp},
-          {"wMb_odom", poseToJson(s.wMb_odom)},
+          {"wMb_odom", poseJson(s.wMb_odom)},
           {"base_v_mps", s.base_v_mps},
           {"base_w_radps", s.base_w_radps},
           {"pan_rad", s.pan_rad},
@@ -155,7 +144,8 @@ bool robotStateFromJson(const Json& j, robot::RobotState* s, std::string* proble
       {"tilt_radps", &s->tilt_radps}};
   for (const auto& [key, out] : scalars)
     if (!number(j, key, out, problem, true)) return false;
-  if (!nested(j, "wMb_odom", &s->wMb_odom, problem, poseFromJson) ||
+  if (!j.contains("wMb_odom")) return fail(problem, "wMb_odom", "missing");
+  if (!pose(j, "wMb_odom", &s->wMb_odom, problem) ||
       !numbers(j, "arm_q_rad", &s->arm_q_rad, problem) ||
       !numbers(j, "arm_qdot_radps", &s->arm_qdot_radps, problem))
     return false;
