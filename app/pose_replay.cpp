@@ -11,7 +11,7 @@
 #include "core/camera.h"
 #include "core/error.h"
 #include "detector/detector.h"
-#include "detector/detector_config.h"
+#include "detector_cli.h"
 #include "robot/sources.h"
 #include "servo/replay.h"
 #include "servo/replay_report.h"
@@ -90,7 +90,8 @@ int main(int argc, char** argv) {
   setenv("OPENCV_FFMPEG_LOGLEVEL", "-8", 0);
   CLI::App app(std::string(kDescription) + robot::sourceSpecHelp() + kExit, "pose_replay");
   std::vector<std::string> object_files;
-  std::string camera_file, input, outdir, rig_file, config_file, matcher, pose_method;
+  std::string camera_file, input, outdir, rig_file;
+  DetectorCli detector_cli;
   bool no_track = false, png_frames = false;
   app.add_option("--object", object_files, "object definition YAML (repeat for several objects)")
       ->required()
@@ -104,14 +105,7 @@ int main(int argc, char** argv) {
   app.add_option("--stereo", rig_file, "stereo rig YAML: replay both eyes (fused poses, left camera frame)");
   app.add_flag("--no-track", no_track, "detect on every frame (no tracking between detections)");
   app.add_flag("--frames", png_frames, "overlay as OUTDIR/frames/NNNNNN.png instead of overlay.mp4");
-  app.add_option("--detector-config", config_file,
-                 "detector options YAML (config/detector.yaml lists every field); --matcher and "
-                 "--pose override it");
-  CLI::Option* o_matcher =
-      app.add_option("--matcher", matcher, "paper (local geometric consistency) or ratio (baseline)")
-          ->check(CLI::IsMember({"paper", "ratio"}));
-  CLI::Option* o_pose =
-      app.add_option("--pose", pose_method, "paper or refined")->check(CLI::IsMember({"paper", "refined"}));
+  detector_cli.add(app);
   CLI11_PARSE(app, argc, argv);
   const bool stereo = !rig_file.empty();
 
@@ -120,13 +114,7 @@ int main(int argc, char** argv) {
   std::optional<Intrinsics> camera;
   std::optional<StereoRig> rig;
   try {
-    detector::DetectorOptions dopt;
-    if (!config_file.empty()) dopt = detector::loadDetectorOptions(config_file);
-    if (o_matcher->count())
-      dopt.match.matcher = matcher == "ratio" ? detector::MatcherType::kRatio : detector::MatcherType::kPaper;
-    if (o_pose->count())
-      dopt.pose = pose_method == "paper" ? detector::PoseMethod::kPaper : detector::PoseMethod::kRefined;
-    det = std::make_unique<detector::Detector>(dopt);
+    det = std::make_unique<detector::Detector>(detector_cli.options());
     for (const std::string& f : object_files) det->addObject(detector::loadObjectDefinition(f));
     if (!camera_file.empty()) camera = loadCameraFile(camera_file);
     if (stereo) rig = loadStereoRig(rig_file);
