@@ -9,6 +9,7 @@
 #include "detector/detection_json.h"
 #include "detector/detector.h"
 #include "detector/detector_config.h"
+#include "detector_cli.h"
 
 using namespace refgrasp;
 using namespace refgrasp::detector;
@@ -46,7 +47,8 @@ cv::Mat readGray(const std::string& path) {
 int main(int argc, char** argv) {
   CLI::App app(kDescription, "detect_object");
   std::vector<std::string> object_files, images, rights;
-  std::string camera_file, rig_file, config_file, matcher, pose_method;
+  std::string camera_file, rig_file;
+  DetectorCli detector_cli;
   DetectorOptions cli;  // values of the tuning options below; only those given are applied
   // Repeatable options take exactly one value each, so the images after them stay positionals.
   app.add_option("--object", object_files, "object definition YAML (repeat for several objects)")
@@ -57,15 +59,7 @@ int main(int argc, char** argv) {
   app.add_option("--camera", camera_file,
                  "intrinsics of the images (ROS yaml or ViSP xml); default: the first object's "
                  "reference camera, or an ideal pinhole for 2D-only objects");
-  app.add_option("--detector-config", config_file,
-                 "detector options YAML (config/detector.yaml lists every field); the options "
-                 "below override it");
-  CLI::Option* o_matcher =
-      app.add_option("--matcher", matcher, "paper (local geometric consistency) or ratio (baseline)")
-          ->check(CLI::IsMember({"paper", "ratio"}));
-  CLI::Option* o_pose =
-      app.add_option("--pose", pose_method, "paper (eq. 7 + LM on 4 corners) or refined (IPPE + robust LM)")
-          ->check(CLI::IsMember({"paper", "refined"}));
+  detector_cli.add(app);
   app.add_option("--right", rights, "right stereo image, one per IMAGE in order (repeat; needs --stereo)")
       ->expected(1)
       ->allow_extra_args(false)
@@ -100,9 +94,7 @@ int main(int argc, char** argv) {
   StereoRig rig;
   DetectorOptions opt;
   try {
-    if (!config_file.empty()) opt = loadDetectorOptions(config_file);
-    if (o_matcher->count()) opt.match.matcher = matcher == "ratio" ? MatcherType::kRatio : MatcherType::kPaper;
-    if (o_pose->count()) opt.pose = pose_method == "paper" ? PoseMethod::kPaper : PoseMethod::kRefined;
+    opt = detector_cli.options();
     if (o_instances->count()) opt.match.max_instances = cli.match.max_instances;
     if (o_ratio->count()) opt.match.global_ratio = cli.match.global_ratio;
     if (o_features->count()) opt.sift.max_features = cli.sift.max_features;

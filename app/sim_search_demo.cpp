@@ -13,6 +13,7 @@
 #include "core/error.h"
 #include "core/json.h"
 #include "detector/detector.h"
+#include "detector/draw.h"
 #include "robot/hal.h"
 #include "servo/search.h"
 #include "robot/sim/scenario.h"
@@ -45,16 +46,7 @@ cv::Mat annotate(const cv::Mat& gray, const detector::Detection& d, const Intrin
     std::vector<cv::Point> poly;
     for (const auto& c : d.corners) poly.emplace_back(cvRound(c.x()), cvRound(c.y()));
     cv::polylines(img, poly, true, cv::Scalar(0, 255, 255), 2, cv::LINE_AA);
-    if (d.cMo) {
-      const auto px = [&](const Eigen::Vector3d& Xo) {
-        const Eigen::Vector2d p = cam.project(*d.cMo * Xo);
-        return cv::Point(cvRound(p.x()), cvRound(p.y()));
-      };
-      const cv::Point o = px(Eigen::Vector3d::Zero());
-      cv::line(img, o, px({0.1, 0, 0}), cv::Scalar(0, 0, 255), 2, cv::LINE_AA);
-      cv::line(img, o, px({0, 0.1, 0}), cv::Scalar(0, 255, 0), 2, cv::LINE_AA);
-      cv::line(img, o, px({0, 0, 0.1}), cv::Scalar(255, 0, 0), 2, cv::LINE_AA);
-    }
+    if (d.cMo) detector::drawAxes(img, cam, *d.cMo, 0.1);
   }
   cv::putText(img, text, {8, 20}, cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 255, 255), 1,
               cv::LINE_AA);

@@ -7,11 +7,12 @@ fail=0
 violation() { echo "layout: $1"; fail=1; }
 
 # The HAL knows no backend: no backend namespace or header in src/robot/*.{h,cpp}
-# (backends.cpp, the registry of built-in backends, is its own library).
-hits=$(grep -lnE "namespace refgrasp::(sim|dds)" src/robot/*.h 2>/dev/null)
+# (backends.cpp and sources.cpp, which build every backend and camera source by name, are the
+# refgrasp_robot_backends library).
+hits=$(grep -lnE "namespace refgrasp::(sim|dds|files|dc1394)" src/robot/*.h 2>/dev/null)
 [ -z "$hits" ] || violation "backend namespace in HAL headers: $hits"
 for f in src/robot/*.h src/robot/*.cpp; do
-  [ "$(basename "$f")" = backends.cpp ] && continue
+  case "$(basename "$f")" in backends.cpp|sources.cpp) continue ;; esac
   grep -Hn '#include "robot/[a-z0-9_]*/' "$f" && violation "$f includes a backend header"
 done
 # Backends never include another backend.
@@ -27,5 +28,7 @@ grep -HnE '#include [<"](detector|servo)/' src/robot/*/*.h src/robot/*/*.cpp 2>/
 grep -HnE '#include "(detector|servo|robot)/' src/core/* && violation "core includes another module"
 grep -HnE '#include [<"]visp3?/|#include "(servo|robot)/' src/detector/* && violation "detector includes ViSP, servo or robot"
 grep -HnE '#include "robot/[a-z0-9_]+/' src/servo/* && violation "servo includes a backend header"
+# reference (make_reference) builds on core and the detector only (and ViSP), never robot or servo.
+grep -HnE '#include "(servo|robot)/' src/reference/* && violation "reference includes robot or servo"
 [ $fail -eq 0 ] && echo "layout: ok"
 exit $fail

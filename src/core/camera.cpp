@@ -234,4 +234,16 @@ StereoRig loadStereoRig(const std::string& path) {
   return rig;
 }
 
+void saveStereoRig(const std::string& path, const StereoRig& rig, const std::string& left_file,
+                   const std::string& right_file) {
+  std::ofstream out(path);
+  if (!out) throw ConfigError(path, "cannot open for writing");
+  out.precision(17);
+  const Eigen::Vector3d t = rig.lMr.t, r = rig.lMr.rotationVector();
+  out << "left: " << left_file << "\nright: " << right_file << "\nright_in_left:\n"
+      << "  translation: [" << t.x() << ", " << t.y() << ", " << t.z() << "]\n"
+      << "  rotation_vector: [" << r.x() << ", " << r.y() << ", " << r.z() << "]\n";
+  if (!out.flush()) throw ConfigError(path, "write failed");
+}
+
 }  // namespace refgrasp

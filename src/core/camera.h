@@ -53,5 +53,9 @@ struct StereoRig {
 /// Reads a rig YAML: {left: CAM_FILE, right: CAM_FILE, right_in_left: {translation, rotation_vector}}
 /// with camera paths relative to the rig file.
 StereoRig loadStereoRig(const std::string& path);
+/// Writes a rig YAML that loadStereoRig reads; left_file/right_file are written as given (paths
+/// relative to the rig file), the camera files themselves are not written.
+void saveStereoRig(const std::string& path, const StereoRig& rig, const std::string& left_file,
+                   const std::string& right_file);
 
 }  // namespace refgrasp

@@ -8,34 +8,18 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 
+#include "common/app_run.h"
 #include "common/temp_dir.h"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
+using refgrasp::testing::AppRun;
+using refgrasp::testing::readFile;
+using refgrasp::testing::runApp;
 
 namespace {
 
 const std::string kSource = REFGRASP_SOURCE_DIR;
-
-struct AppRun {
-  int status = -1;
-  std::string out, err;
-};
-
-std::string readFile(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-AppRun runApp(const std::string& app, const std::string& args) {
-  const fs::path d = refgrasp::testing::tempDir("refgrasp_test_app");
-  const std::string cmd = std::string(REFGRASP_APP_DIR) + "/" + app + " " + args + " > " +
-                          (d / "out.txt").string() + " 2> " + (d / "err.txt").string();
-  const int st = std::system(cmd.c_str());
-  return {WIFEXITED(st) ? WEXITSTATUS(st) : -1, readFile(d / "out.txt"), readFile(d / "err.txt")};
-}
 
 json lastLook(const fs::path& out) {
   std::ifstream in(out / "looks.jsonl");

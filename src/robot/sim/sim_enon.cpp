@@ -65,6 +65,11 @@ class SimStereoCamera : public robot::StereoSource {
     out.stamp = t;
     out.index = k;
     out.capture.head = robot::HeadJoints{now.pan, now.tilt};
+    // Ground truth of the objects a detector could look for (those with a definition).
+    for (size_t i = 0; i < world.objects.size(); ++i)
+      if (!world.objects[i].definition.empty())
+        out.truth.push_back({world.objects[i].name, sim_->last_frame_->left_cMo[i],
+                             sim_->last_frame_->right_cMo[i]});
     *frame = std::move(out);
     return ReturnType::kOk;
   }
@@ -336,6 +341,42 @@ std::unique_ptr<robot::Robot> makeSimRobot(const robot::EnonModel& model, const 
   auto hw = std::make_unique<SimEnon>(model, scenario);
   auto cam = hw->makeCamera();
   return std::make_unique<robot::Robot>(model, std::move(hw), std::move(cam));
+}
+
+namespace {
+
+class StandaloneSimCamera : public robot::StereoSource {
+ public:
+  StandaloneSimCamera(const robot::EnonModel& model, const Scenario& scenario)
+      : sim_(model, scenario),
+        period_(1.0 / model.head.frame_rate_hz),
+        delay_(scenario.faults.frame_delay_s) {
+    sim_.configure();
+    sim_.activate();
+    camera_ = sim_.makeCamera();
+  }
+  const StereoRig& rig() const override { return camera_->rig(); }
+  ReturnType grab(Seconds, std::optional<robot::StereoFrame>* frame) override {
+    frame->reset();
+    // Frame k is captured at k * period and delivered frame_delay_s later.
+    const Seconds t = static_cast<double>(next_++) * period_ + delay_;
+    robot::RobotState state;
+    if (sim_.read(t, next_ == 1 ? 0.0 : period_, &state) != ReturnType::kOk) return ReturnType::kError;
+    return camera_->grab(t + 1e-9, frame);
+  }
+
+ private:
+  SimEnon sim_;
+  std::unique_ptr<robot::StereoSource> camera_;
+  Seconds period_, delay_;
+  int64_t next_ = 0;
+};
+
+}  // namespace
+
+std::unique_ptr<robot::StereoSource> makeStandaloneSimCamera(const robot::EnonModel& model,
+                                                             const Scenario& scenario) {
+  return std::make_unique<StandaloneSimCamera>(model, scenario);
 }
 
 void registerSimBackend() {

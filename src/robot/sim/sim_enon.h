@@ -14,7 +14,8 @@
 //
 // Camera frames are rendered by SyntheticStereoCamera from the TRUE left camera pose
 // wMc = wMb_true * bMc(pan, tilt) at the capture time (linear interpolation between reads);
-// the odometry in RobotState carries the noise.
+// the odometry in RobotState carries the noise. Each frame's `truth` holds the true pose of every
+// world object that has a detector definition, in both eyes.
 #include <deque>
 #include <memory>
 #include <optional>
@@ -120,6 +121,14 @@ class SimEnon : public robot::RobotHardware {
 /// A Robot on the simulated enon for a scenario already in memory (tests, demos). Its hardware()
 /// is the SimEnon (ground truth through dynamic_cast<SimEnon&>).
 std::unique_ptr<robot::Robot> makeSimRobot(const robot::EnonModel& model, const Scenario& scenario);
+
+/// The stereo camera of a simulated enon that stands still (no command is ever sent), owning its
+/// SimEnon: each grab() advances the simulation by one frame period (1 / head.frame_rate_hz) and
+/// renders that frame, whatever `time` (an offline source that never ends; a frame dropped by the
+/// scenario's faults gives kOk without a frame). Frames carry capture.head and the ground truth.
+/// For recording synthetic sequences (the record tool) and tests.
+std::unique_ptr<robot::StereoSource> makeStandaloneSimCamera(const robot::EnonModel& model,
+                                                             const Scenario& scenario);
 
 /// Registers backend "sim" (robot/backend.h). Settings: `scenario` (required), the scenario YAML.
 /// Throws ConfigError naming config.source (or the model file) and `scenario` when it is missing.

@@ -1,0 +1,239 @@
+// The pose replay in-process: modes and poses on a rendered sequence where the target leaves the
+// view and passes behind an occluder; identical output twice; the report files; the tracker seam
+// (a scripted tracker); frames the detector cannot use.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/videoio.hpp>
+#include <sstream>
+
+#include "common/replay_sequence.h"
+#include "common/temp_dir.h"
+#include "detector/detector.h"
+#include "servo/replay.h"
+#include "servo/replay_report.h"
+
+namespace fs = std::filesystem;
+using namespace refgrasp;
+using servo::TrackMode;
+
+namespace {
+
+const std::string kSource = REFGRASP_SOURCE_DIR;
+
+detector::Detector& teaBoxDetector() {
+  static detector::Detector det = [] {
+    detector::Detector d;
+    d.addObject(detector::loadObjectDefinition(kSource + "/config/objects/tea_box.yaml"));
+    return d;
+  }();
+  return det;
+}
+
+const std::vector<refgrasp::testing::SequenceFrame>& sequence() {
+  static const std::vector<refgrasp::testing::SequenceFrame> s = refgrasp::testing::renderOcclusionSequence();
+  return s;
+}
+
+std::vector<servo::ReplayFrame> replayAll(servo::PoseReplay& replay) {
+  std::vector<servo::ReplayFrame> out;
+  const Intrinsics cam = refgrasp::testing::sceneCamera();
+  for (size_t k = 0; k < sequence().size(); ++k)
+    out.push_back(replay.process(static_cast<int64_t>(k), sequence()[k].frame, cam));
+  return out;
+}
+
+std::string readText(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+size_t lines(const std::string& s) { return static_cast<size_t>(std::count(s.begin(), s.end(), '\n')); }
+
+// A scripted tracker: follows the ground truth for `frames` frames after each start, then loses.
+struct ScriptedTracker : servo::FrameTracker {
+  const std::vector<Pose>* truth = nullptr;
+  int frames = 0, left = 0;
+  size_t now = 0;  ///< the frame being processed (set by the test)
+  std::vector<size_t>* started_at = nullptr;
+  void start(const cv::Mat&, const Intrinsics&, const Pose&) override {
+    left = frames;
+    started_at->push_back(now);
+  }
+  std::optional<Pose> track(const cv::Mat&, const Intrinsics&) override {
+    if (left-- <= 0) return std::nullopt;
+    return (*truth)[now];
+  }
+};
+
+}  // namespace
+
+TEST(PoseReplay, DetectOnlyModesAndPosesOnAnOcclusionSequence) {
+  const auto& seq = sequence();
+  servo::PoseReplay replay(teaBoxDetector());
+  EXPECT_FALSE(replay.tracking());  // no tracker given: detection on every frame
+  const std::vector<servo::ReplayFrame> a = replayAll(replay);
+  ASSERT_EQ(a.size(), seq.size());
+  int visible = 0, hidden = 0, detected = 0;
+  std::string modes;
+  for (size_t k = 0; k < seq.size(); ++k) {
+    const servo::ObjectFrame& o = a[k].objects.at(0);
+    ASSERT_TRUE(a[k].ok) << a[k].error;
+    EXPECT_EQ(o.name, "tea_box");
+    ASSERT_TRUE(o.truth_cMo.has_value());
+    modes += o.mode == TrackMode::kDetect ? 'D' : o.mode == TrackMode::kTrack ? 'T' : '.';
+    if (o.mode == TrackMode::kDetect) ++detected;
+    if (seq[k].visible >= 0.95) {
+      ++visible;
+      ASSERT_EQ(o.mode, TrackMode::kDetect) << "frame " << k << " fully visible";
+      ASSERT_TRUE(o.cMo && o.corners);
+      const double dist = o.truth_cMo->t.norm();
+      EXPECT_LT(translationError(*o.cMo, *o.truth_cMo), 0.01 * dist) << "frame " << k;
+      EXPECT_LT(rotationError(*o.cMo, *o.truth_cMo) * 180 / M_PI, 1.0) << "frame " << k;
+    } else if (seq[k].visible <= 0.05) {
+      ++hidden;
+      EXPECT_EQ(o.mode, TrackMode::kLost) << "frame " << k << " invisible ("
+                                          << seq[k].visible << ")";
+      EXPECT_FALSE(o.cMo.has_value());
+    }
+  }
+  std::printf("modes (D detect, . lost): %s; %d fully visible, %d hidden, %d detected of %zu\n",
+              modes.c_str(), visible, hidden, detected, seq.size());
+  // The sequence does what it says: the target is fully visible, out of view and occluded.
+  EXPECT_GE(visible, 12);
+  EXPECT_GE(hidden, 6);
+  EXPECT_LE(seq[10].visible, 0.05);  // out of view
+  EXPECT_LE(seq[21].visible, 0.05);  // behind the occluder
+  EXPECT_GE(seq.back().visible, 0.95);  // out again on its left
+
+  // Deterministic: a second replay gives the same poses.jsonl lines (the first 12 frames, found
+  // and lost ones; the app test compares whole files).
+  servo::PoseReplay again(teaBoxDetector());
+  for (size_t k = 0; k < 12; ++k) {
+    const servo::ReplayFrame b = again.process(static_cast<int64_t>(k), seq[k].frame, refgrasp::testing::sceneCamera());
+    EXPECT_EQ(servo::ReplayReport::jsonLines(a[k], false), servo::ReplayReport::jsonLines(b, false)) << k;
+  }
+
+  // The report files.
+  const fs::path out = refgrasp::testing::tempDir("refgrasp_test_replay") / "report";
+  fs::remove_all(out);
+  {
+    servo::ReplayReportOptions ro;
+    ro.input = "rendered sequence";
+    servo::ReplayReport report(out.string(), teaBoxDetector(), ro);
+    std::string err;
+    for (size_t k = 0; k < a.size(); ++k)
+      ASSERT_TRUE(report.add(a[k], seq[k].frame.image, refgrasp::testing::sceneCamera(), &err)) << err;
+    ASSERT_TRUE(report.finish(&err)) << err;
+  }
+  const std::string jsonl = readText(out / "poses.jsonl");
+  EXPECT_EQ(lines(jsonl), seq.size());
+  const nlohmann::json first = nlohmann::json::parse(jsonl.substr(0, jsonl.find('\n')));
+  EXPECT_EQ(first["frame"], 0);
+  EXPECT_EQ(first["mode"], "detect");
+  EXPECT_TRUE(first["found"].get<bool>());
+  EXPECT_EQ(first["R"].size(), 9u);
+  EXPECT_EQ(first["corners"].size(), 4u);
+  EXPECT_LT(first["error"]["translation_m"].get<double>(), 0.009);
+  EXPECT_FALSE(first.contains("time_ms"));  // timings are not deterministic
+  EXPECT_EQ(lines(readText(out / "trajectory.tum")), 1u + detected);  // header + one per pose
+  EXPECT_EQ(lines(readText(out / "truth.tum")), 1u + seq.size());
+  EXPECT_EQ(lines(readText(out / "poses.csv")), 1u + seq.size());
+  const nlohmann::json summary = nlohmann::json::parse(readText(out / "summary.json"));
+  EXPECT_EQ(summary["frames"], seq.size());
+  EXPECT_EQ(summary["objects"][0]["modes"]["detect"], detected);
+  EXPECT_EQ(summary["objects"][0]["modes"]["lost"], static_cast<int>(seq.size()) - detected);
+  EXPECT_GE(summary["objects"][0]["lost_segments"].size(), 2u);  // out of view, occluded
+  EXPECT_LT(summary["objects"][0]["ground_truth"]["translation_error_m"]["median"].get<double>(), 0.005);
+  const cv::Mat plot = cv::imread((out / "plot.png").string());
+  EXPECT_EQ(plot.cols, 1280);
+  EXPECT_GT(plot.rows, 8 * 100);  // 6 pose panels + 2 error panels
+  cv::VideoCapture video((out / "overlay.mp4").string());
+  ASSERT_TRUE(video.isOpened());
+  cv::Mat frame;
+  int n = 0;
+  for (; video.read(frame); ++n) EXPECT_EQ(frame.size(), cv::Size(640, 480));
+  EXPECT_EQ(n, static_cast<int>(seq.size()));
+}
+
+// The tracker seam: detect -> track while the tracker follows -> detect again when it loses,
+// lost when neither works; --no-track (options.track = false) never tracks.
+TEST(PoseReplay, ATrackerRunsBetweenDetectionsAndDetectionResumesWhenItLoses) {
+  const auto& seq = sequence();
+  std::vector<Pose> truth;
+  for (const auto& f : seq) truth.push_back(f.frame.truth[0].cMo);
+  std::vector<size_t> started_at;
+  ScriptedTracker* tracker = nullptr;
+  servo::PoseReplay replay(teaBoxDetector(), {}, [&](const detector::ObjectModel&) {
+    auto t = std::make_unique<ScriptedTracker>();
+    t->truth = &truth;
+    t->frames = 2;
+    t->started_at = &started_at;
+    tracker = t.get();
+    return t;
+  });
+  ASSERT_TRUE(replay.tracking());
+  std::string modes;
+  for (size_t k = 0; k < 12; ++k) {  // frames 0-5 visible, then leaving the view
+    tracker->now = k;
+    const servo::ReplayFrame r = replay.process(static_cast<int64_t>(k), seq[k].frame, refgrasp::testing::sceneCamera());
+    const servo::ObjectFrame& o = r.objects[0];
+    modes += o.mode == TrackMode::kDetect ? 'D' : o.mode == TrackMode::kTrack ? 'T' : '.';
+    if (o.mode == TrackMode::kTrack) {
+      ASSERT_TRUE(o.cMo && o.corners);
+      EXPECT_EQ(o.cMo->t, truth[k].t);
+      EXPECT_FALSE(o.detection.found);
+    }
+  }
+  // Detect, track twice, the tracker loses and frame 3 is detected again, ...; once the target
+  // has left the view (frames 9-11) nothing finds it.
+  EXPECT_EQ(modes.substr(0, 7), "DTTDTTD") << modes;
+  EXPECT_EQ(modes.substr(9), "...") << modes;
+  ASSERT_GE(started_at.size(), 3u);
+  EXPECT_EQ(started_at[0], 0u);
+  EXPECT_EQ(started_at[1], 3u);
+  EXPECT_EQ(started_at[2], 6u);
+
+  servo::ReplayOptions no_track;
+  no_track.track = false;
+  servo::PoseReplay detect_only(teaBoxDetector(), no_track, [&](const detector::ObjectModel&) {
+    return std::make_unique<ScriptedTracker>();
+  });
+  EXPECT_FALSE(detect_only.tracking());
+}
+
+TEST(PoseReplay, AFrameTheDetectorCannotUseIsAOneLineErrorAndResetsTheTrackers) {
+  std::vector<size_t> started_at;
+  std::vector<Pose> truth(4);
+  ScriptedTracker* tracker = nullptr;
+  servo::PoseReplay replay(teaBoxDetector(), {}, [&](const detector::ObjectModel&) {
+    auto t = std::make_unique<ScriptedTracker>();
+    t->truth = &truth;
+    t->frames = 100;
+    t->started_at = &started_at;
+    tracker = t.get();
+    return t;
+  });
+  tracker->now = 0;
+  const servo::ReplayFrame a = replay.process(0, sequence()[0].frame, refgrasp::testing::sceneCamera());
+  EXPECT_EQ(a.objects[0].mode, TrackMode::kDetect);
+  robot::MonoFrame small;
+  small.image = cv::Mat(240, 320, CV_8UC1, cv::Scalar(0));
+  const servo::ReplayFrame b = replay.process(1, small, refgrasp::testing::sceneCamera());
+  EXPECT_FALSE(b.ok);
+  EXPECT_EQ(b.error, "image is 320x240, the camera calibration is 640x480");
+  EXPECT_EQ(b.objects[0].mode, TrackMode::kLost);
+  // The tracker was reset: the next good frame is detected, not tracked.
+  tracker->now = 2;
+  const servo::ReplayFrame c = replay.process(2, sequence()[1].frame, refgrasp::testing::sceneCamera());
+  EXPECT_EQ(c.objects[0].mode, TrackMode::kDetect);
+  const servo::ReplayFrame d = replay.failed(3, {0.2, -1}, "x.png: cannot decode as an image");
+  EXPECT_FALSE(d.ok);
+  const std::vector<std::string> line = servo::ReplayReport::jsonLines(d, false);
+  EXPECT_EQ(line.at(0), R"({"frame":3,"index":-1,"stamp":0.2,"mode":"lost","found":false,"error_text":"x.png: cannot decode as an image"})");
+}
