@@ -7,6 +7,7 @@
 #include <random>
 #include <string>
 
+#include "bench_util.h"
 #include "robot/sim/synthetic_scene.h"
 #include "detector/detector.h"
 #include "detector/detector_internal.h"
@@ -17,21 +18,9 @@ using namespace refgrasp::testing;
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
-
-template <class F>
-double timeMs(F&& f) {
-  const auto t0 = Clock::now();
-  f();
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
-
-double median(std::vector<double> v) {
-  if (v.empty()) return NAN;
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
+using bench::Clock;
+using bench::median;
+using bench::timeMs;
 
 void usage() {
   std::printf(

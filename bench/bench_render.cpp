@@ -7,16 +7,14 @@
 #include <vector>
 
 #include "robot/sim/scenario.h"
+#include "bench_util.h"
 #include "robot/sim/synthetic_camera.h"
 
 using namespace refgrasp;
 
 namespace {
 
-double median(std::vector<double> v) {
-  std::sort(v.begin(), v.end());
-  return v[v.size() / 2];
-}
+using bench::median;
 
 }  // namespace
 

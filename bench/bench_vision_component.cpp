@@ -20,6 +20,7 @@
 #include "component/vision_component.h"
 #include "robot/dds/convert.h"
 #include "robot/dds/transport.h"
+#include "bench_util.h"
 #include "robot/sim/synthetic_scene.h"
 
 using namespace refgrasp;
@@ -27,15 +28,9 @@ using namespace refgrasp::testing;
 
 namespace {
 
-using Clock = std::chrono::steady_clock;
+using bench::Clock;
+using bench::median;
 double now() { return std::chrono::duration<double>(Clock::now().time_since_epoch()).count(); }
-
-double median(std::vector<double> v) {
-  if (v.empty()) return NAN;
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
 
 struct Scene {
   cv::Mat gray, bgr;

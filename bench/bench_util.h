@@ -1,0 +1,30 @@
+// Shared by the timer harnesses in bench/: wall-clock timing of a callable and the median of
+// samples. Header-only; the benches are plain executables (not run by ctest).
+#pragma once
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <vector>
+
+namespace refgrasp::bench {
+
+using Clock = std::chrono::steady_clock;
+
+/// Wall-clock time of one call of f, milliseconds.
+template <class F>
+double timeMs(F&& f) {
+  const auto t0 = Clock::now();
+  f();
+  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+/// Median of the samples (the mean of the two middle ones for an even count); NaN when empty.
+inline double median(std::vector<double> v) {
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  const size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+}  // namespace refgrasp::bench
