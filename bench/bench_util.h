@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <ctime>
 #include <vector>
 
 namespace refgrasp::bench {
@@ -17,6 +18,18 @@ double timeMs(F&& f) {
   const auto t0 = Clock::now();
   f();
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+}
+
+/// CPU time of the calling thread during one call of f, milliseconds: what the call costs a core,
+/// nearly independent of how many other jobs share the machine (unlike timeMs). Only for f that
+/// run on the calling thread.
+template <class F>
+double threadCpuMs(F&& f) {
+  timespec a{}, b{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &a);
+  f();
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &b);
+  return 1e3 * static_cast<double>(b.tv_sec - a.tv_sec) + 1e-6 * static_cast<double>(b.tv_nsec - a.tv_nsec);
 }
 
 /// Median of the samples (the mean of the two middle ones for an even count); NaN when empty.
