@@ -46,6 +46,9 @@ void usage() {
       "  ROI re-detection: extractSift on the target's bounding box + 16 px, keypoint sizes 2-40 px.\n"
       "Usage: bench_sift [--frames N (default 200)] [--threads T (default 2)] [--seed S (default 1)]\n"
       "                  [--texture media/relative.png] [--only fast|opencv] [--help]\n"
+      "       bench_sift --profile extract|detect|roi [--frames N] [--only fast|opencv]: no timings;\n"
+      "         one warm-up, then that operation on each frame, 1 thread, inside profiledRegion()\n"
+      "         for valgrind --tool=callgrind --toggle-collect=profiledRegion (instruction counts).\n"
       "Wall-clock figures: run on an otherwise idle machine. REFGRASP_SIFT_ISA=avx2|scalar lowers\n"
       "the fast extractor's kernels.\n");
 }
@@ -85,12 +88,18 @@ double stream(int n, int workers, std::vector<double>* latency, F fn) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
 
+/// The operation --profile measures, not inlined so that callgrind can collect only it.
+template <class F>
+__attribute__((noinline)) void profiledRegion(F&& f) {
+  f();
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   int frames = 200, threads = 2;
   uint64_t seed = 1;
-  std::string texture = "targets/poster_concert.png", only;
+  std::string texture = "targets/poster_concert.png", only, profile;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--help" || a == "-h") {
@@ -104,6 +113,12 @@ int main(int argc, char** argv) {
       seed = std::strtoull(argv[++i], nullptr, 10);
     } else if (a == "--texture" && i + 1 < argc) {
       texture = argv[++i];
+    } else if (a == "--profile" && i + 1 < argc) {
+      profile = argv[++i];
+      if (profile != "extract" && profile != "detect" && profile != "roi") {
+        std::fprintf(stderr, "bench_sift: --profile takes extract, detect or roi\n");
+        return 2;
+      }
     } else if (a == "--only" && i + 1 < argc) {
       only = argv[++i];
       if (only != "fast" && only != "opencv") {
@@ -142,6 +157,35 @@ int main(int argc, char** argv) {
         cv::Point2f(l.corners[2].x(), l.corners[2].y()), cv::Point2f(l.corners[3].x(), l.corners[3].y())});
     box.x -= 16, box.y -= 16, box.width += 32, box.height += 32;
     data[i].roi = box & cv::Rect(0, 0, cam.width, cam.height);
+  }
+  if (!profile.empty()) {
+    cv::setNumThreads(1);
+    const SiftImplementation impl = only == "opencv" ? SiftImplementation::kOpenCV : SiftImplementation::kFast;
+    DetectorOptions dopt;
+    dopt.sift = siftFor(impl, 1);
+    Detector det(dopt);
+    det.addObject(textureObject("target", tex, w));
+    ExtractRegion region;
+    region.min_size_px = 2;
+    region.max_size_px = 40;
+    long total = 0;
+    auto run = [&](int i) {
+      if (profile == "extract") {
+        total += extractSift(data[i].left, siftFor(impl, 1)).size();
+      } else if (profile == "detect") {
+        total += det.detect(data[i].left, cam).find(0).has_value();
+      } else {
+        region.roi = data[i].roi;
+        total += extractSift(data[i].left, siftFor(impl, 1), region).size();
+      }
+    };
+    run(0);  // warm-up: buffers, lazy initialisation
+    total = 0;
+    for (int i = 0; i < frames; ++i) profiledRegion([&] { run(i); });
+    std::printf("bench_sift --profile %s (%s): %d frames, %ld %s\n", profile.c_str(),
+                impl == SiftImplementation::kFast ? "fast" : "cv::SIFT", frames, total,
+                profile == "detect" ? "detections" : "features");
+    return 0;
   }
   const int sample = std::min(frames, 48);  // frames for the per-frame medians
   std::vector<double> roi_area;

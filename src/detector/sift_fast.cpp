@@ -233,7 +233,18 @@ Workspace& workspace() {
 
 /// Per-thread scratch of the keypoint stages.
 struct KeypointScratch {
-  Buffer hist, weights, gauss;
+  Buffer weights, gauss, sum;
+  /// The descriptor's slots, zero between calls (the kernel clears what it reads).
+  float* slots() {
+    if (!slots_) {
+      const size_t n = static_cast<size_t>(si::kDescrCopies) * si::kDescrSlotFloats;
+      slots_ = slot_buf_.get(n);
+      std::fill(slots_, slots_ + n, 0.f);
+    }
+    return slots_;
+  }
+  Buffer slot_buf_;
+  float* slots_ = nullptr;
   std::vector<int32_t> index;
   std::vector<uint32_t> bits;
 };
@@ -582,29 +593,26 @@ void describeSpot(const si::Kernels& K, const Octave& oct, const Kp* kps, int co
   const float hist_width = kDescrSclFactor * k0.scl;
   const int radius = descriptorRadius(oct, k0.scl);
   const si::GradientPatch p = patchAround(oct, k0.layer, pr, pc, radius);
-  float* hist = s.hist.get(si::kDescrCopies * si::kDescrLayout + 64);
   si::DescriptorScratch ds;
   ds.weights = s.weights.get(si::kDescrBlock * 8 * 16 + 64);
-  s.index.resize(si::kDescrBlock * 3 * 16 + 16);
+  s.index.resize(si::kDescrBlock * 16 + 16);
   s.bits.resize(si::kDescrBlock);
   ds.index = s.index.data();
   ds.bits = s.bits.data();
   ds.gauss = s.gauss.get(2 * radius + 64);
+  ds.slots = s.slots();
+  ds.sum = s.sum.get(si::kDescrSlotFloats + 64);
   for (int q = 0; q < count; ++q) {
     float ori = 360.f - kps[q].kp.angle;
     if (std::abs(ori - 360.f) < FLT_EPSILON) ori = 0.f;
     const float cos_t = std::cos(ori * static_cast<float>(CV_PI / 180)) / hist_width;
     const float sin_t = std::sin(ori * static_cast<float>(CV_PI / 180)) / hist_width;
-    if (!p.empty()) {
-      K.descriptor_hist(p, radius, cos_t, sin_t, ori, ds, hist);
-    } else {
-      std::fill(hist, hist + si::kDescrLayout, 0.f);
-    }
     float raw[kDescrLen];
-    constexpr int d = kDescrWidth, n = kDescrBins;
-    for (int i = 0; i < d; ++i)
-      for (int j = 0; j < d; ++j)
-        for (int b = 0; b < n; ++b) raw[(i * d + j) * n + b] = hist[b * si::kDescrCells + (i + 1) * (d + 2) + (j + 1)];
+    if (!p.empty()) {
+      K.descriptor_hist(p, radius, cos_t, sin_t, ori, ds, raw);
+    } else {
+      std::fill(raw, raw + kDescrLen, 0.f);
+    }
     float part[16] = {0};
     for (int b = 0; b < kDescrLen; ++b) part[b % 16] = std::fma(raw[b], raw[b], part[b % 16]);
     float nrm2 = 0;

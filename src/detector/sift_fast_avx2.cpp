@@ -12,8 +12,6 @@ namespace {
 
 constexpr const char* kIsaName = "avx2";
 
-/// transpose8's layout: the first four weights of lane l at kAos[l] (4x4 blocks per 128 bits).
-constexpr int8_t kAos[8] = {0, 8, 16, 24, 4, 12, 20, 28};
 
 
 struct V {
@@ -68,29 +66,30 @@ struct V {
     _mm256_storeu_ps(out, _mm256_permute2f128_ps(u0, u1, 0x20));
     _mm256_storeu_ps(out + 8, _mm256_permute2f128_ps(u0, u1, 0x31));
   }
-  /// 4x4 transposes within each 128-bit lane: sample l's weights a..d at aos_lo(l), e..h at aos_hi(l).
-  static void transpose4(F a, F b, F c, F d, float* out) {
+  /// 8x8 transpose: lane l's a..h at out[aos(l) ..] = out[8 l ..].
+  static void transpose8(F a, F b, F c, F d, F e, F f, F g, F h, float* out) {
     const F t0 = _mm256_unpacklo_ps(a, b), t1 = _mm256_unpackhi_ps(a, b);
     const F t2 = _mm256_unpacklo_ps(c, d), t3 = _mm256_unpackhi_ps(c, d);
-    _mm256_storeu_ps(out, _mm256_shuffle_ps(t0, t2, 0x44));
-    _mm256_storeu_ps(out + N, _mm256_shuffle_ps(t0, t2, 0xEE));
-    _mm256_storeu_ps(out + 2 * N, _mm256_shuffle_ps(t1, t3, 0x44));
-    _mm256_storeu_ps(out + 3 * N, _mm256_shuffle_ps(t1, t3, 0xEE));
+    const F t4 = _mm256_unpacklo_ps(e, f), t5 = _mm256_unpackhi_ps(e, f);
+    const F t6 = _mm256_unpacklo_ps(g, h), t7 = _mm256_unpackhi_ps(g, h);
+    // x_p / y_p: (a..d) / (e..h) of lanes p and 4 + p.
+    const F x0 = _mm256_shuffle_ps(t0, t2, 0x44), x1 = _mm256_shuffle_ps(t0, t2, 0xEE);
+    const F x2 = _mm256_shuffle_ps(t1, t3, 0x44), x3 = _mm256_shuffle_ps(t1, t3, 0xEE);
+    const F y0 = _mm256_shuffle_ps(t4, t6, 0x44), y1 = _mm256_shuffle_ps(t4, t6, 0xEE);
+    const F y2 = _mm256_shuffle_ps(t5, t7, 0x44), y3 = _mm256_shuffle_ps(t5, t7, 0xEE);
+    _mm256_storeu_ps(out, _mm256_permute2f128_ps(x0, y0, 0x20));
+    _mm256_storeu_ps(out + 8, _mm256_permute2f128_ps(x1, y1, 0x20));
+    _mm256_storeu_ps(out + 16, _mm256_permute2f128_ps(x2, y2, 0x20));
+    _mm256_storeu_ps(out + 24, _mm256_permute2f128_ps(x3, y3, 0x20));
+    _mm256_storeu_ps(out + 32, _mm256_permute2f128_ps(x0, y0, 0x31));
+    _mm256_storeu_ps(out + 40, _mm256_permute2f128_ps(x1, y1, 0x31));
+    _mm256_storeu_ps(out + 48, _mm256_permute2f128_ps(x2, y2, 0x31));
+    _mm256_storeu_ps(out + 56, _mm256_permute2f128_ps(x3, y3, 0x31));
   }
-  static void transpose8(F a, F b, F c, F d, F e, F f, F g, F h, float* out) {
-    transpose4(a, b, c, d, out);
-    transpose4(e, f, g, h, out + 4 * N);
-  }
-  static int aos_lo(int l) { return kAos[l]; }
-  static int aos_hi(int l) { return 4 * N + aos_lo(l); }
-  /// See the scalar add_sample: [lo | hi] permuted to (w000, w010, .., w100, w110) and
-  /// (w001, w011, .., w101, w111), lanes 2..5 zero.
-  static void add_sample(float* a, float* b, const float* lo, const float* hi) {
-    const __m256 w = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps(lo)), _mm_loadu_ps(hi), 1);
-    const __m256i ia = _mm256_setr_epi32(0, 2, 0, 0, 0, 0, 4, 6), ib = _mm256_setr_epi32(1, 3, 1, 1, 1, 1, 5, 7);
-    const __m256 m = _mm256_castsi256_ps(_mm256_setr_epi32(-1, -1, 0, 0, 0, 0, -1, -1));
-    _mm256_storeu_ps(a, _mm256_add_ps(_mm256_loadu_ps(a), _mm256_and_ps(_mm256_permutevar8x32_ps(w, ia), m)));
-    _mm256_storeu_ps(b, _mm256_add_ps(_mm256_loadu_ps(b), _mm256_and_ps(_mm256_permutevar8x32_ps(w, ib), m)));
+  static constexpr int aos(int l) { return 8 * l; }
+  /// See the scalar add8: one 8-float add.
+  static void add8(float* slot, const float* w) {
+    _mm256_storeu_ps(slot, _mm256_add_ps(_mm256_loadu_ps(slot), _mm256_loadu_ps(w)));
   }
 };
 

@@ -13,8 +13,8 @@ namespace {
 
 constexpr const char* kIsaName = "avx512";
 
-/// transpose8's layout: the first four weights of lane l at kAos[l] (4x4 blocks per 128 bits).
-constexpr int8_t kAos[16] = {0, 16, 32, 48, 4, 20, 36, 52, 8, 24, 40, 56, 12, 28, 44, 60};
+/// transpose8's layout: lane l = 4 m + p (128-bit lane m, position p) at kAos[l]; see transpose8.
+constexpr int8_t kAos[16] = {0, 32, 64, 96, 8, 40, 72, 104, 16, 48, 80, 112, 24, 56, 88, 120};
 
 
 struct V {
@@ -70,29 +70,29 @@ struct V {
     _mm512_storeu_ps(out, _mm512_permutex2var_ps(lo, i0, hi));
     _mm512_storeu_ps(out + 16, _mm512_permutex2var_ps(lo, i1, hi));
   }
-  /// 4x4 transposes within each 128-bit lane: sample l's weights a..d at aos_lo(l), e..h at aos_hi(l).
-  static void transpose4(F a, F b, F c, F d, float* out) {
+  /// Lane l's a..h at out[aos(l) ..], 8 contiguous floats: 4x4 transposes within each 128-bit
+  /// lane (x_p, y_p: a..d, e..h of the lanes 4 m + p), then lanes 4 m + p and 4 (m + 1) + p
+  /// paired: [x_p.m0 y_p.m0 x_p.m1 y_p.m1] at 32 p, [x_p.m2 y_p.m2 x_p.m3 y_p.m3] at 32 p + 16.
+  static void transpose8(F a, F b, F c, F d, F e, F f, F g, F h, float* out) {
     const F t0 = _mm512_unpacklo_ps(a, b), t1 = _mm512_unpackhi_ps(a, b);
     const F t2 = _mm512_unpacklo_ps(c, d), t3 = _mm512_unpackhi_ps(c, d);
-    _mm512_storeu_ps(out, _mm512_shuffle_ps(t0, t2, 0x44));
-    _mm512_storeu_ps(out + N, _mm512_shuffle_ps(t0, t2, 0xEE));
-    _mm512_storeu_ps(out + 2 * N, _mm512_shuffle_ps(t1, t3, 0x44));
-    _mm512_storeu_ps(out + 3 * N, _mm512_shuffle_ps(t1, t3, 0xEE));
+    const F t4 = _mm512_unpacklo_ps(e, f), t5 = _mm512_unpackhi_ps(e, f);
+    const F t6 = _mm512_unpacklo_ps(g, h), t7 = _mm512_unpackhi_ps(g, h);
+    const F x[4] = {_mm512_shuffle_ps(t0, t2, 0x44), _mm512_shuffle_ps(t0, t2, 0xEE),
+                    _mm512_shuffle_ps(t1, t3, 0x44), _mm512_shuffle_ps(t1, t3, 0xEE)};
+    const F y[4] = {_mm512_shuffle_ps(t4, t6, 0x44), _mm512_shuffle_ps(t4, t6, 0xEE),
+                    _mm512_shuffle_ps(t5, t7, 0x44), _mm512_shuffle_ps(t5, t7, 0xEE)};
+    const __m512i lo = _mm512_setr_epi32(0, 1, 2, 3, 16, 17, 18, 19, 4, 5, 6, 7, 20, 21, 22, 23);
+    const __m512i hi = _mm512_setr_epi32(8, 9, 10, 11, 24, 25, 26, 27, 12, 13, 14, 15, 28, 29, 30, 31);
+    for (int p = 0; p < 4; ++p) {
+      _mm512_storeu_ps(out + 32 * p, _mm512_permutex2var_ps(x[p], lo, y[p]));
+      _mm512_storeu_ps(out + 32 * p + 16, _mm512_permutex2var_ps(x[p], hi, y[p]));
+    }
   }
-  static void transpose8(F a, F b, F c, F d, F e, F f, F g, F h, float* out) {
-    transpose4(a, b, c, d, out);
-    transpose4(e, f, g, h, out + 4 * N);
-  }
-  static int aos_lo(int l) { return kAos[l]; }
-  static int aos_hi(int l) { return 4 * N + aos_lo(l); }
-  /// See the scalar add_sample: [lo | hi] permuted to (w000, w010, .., w100, w110) and
-  /// (w001, w011, .., w101, w111), lanes 2..5 zero.
-  static void add_sample(float* a, float* b, const float* lo, const float* hi) {
-    const __m256 w = _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps(lo)), _mm_loadu_ps(hi), 1);
-    const __m256i ia = _mm256_setr_epi32(0, 2, 0, 0, 0, 0, 4, 6), ib = _mm256_setr_epi32(1, 3, 1, 1, 1, 1, 5, 7);
-    const __m256 m = _mm256_castsi256_ps(_mm256_setr_epi32(-1, -1, 0, 0, 0, 0, -1, -1));
-    _mm256_storeu_ps(a, _mm256_add_ps(_mm256_loadu_ps(a), _mm256_and_ps(_mm256_permutevar8x32_ps(w, ia), m)));
-    _mm256_storeu_ps(b, _mm256_add_ps(_mm256_loadu_ps(b), _mm256_and_ps(_mm256_permutevar8x32_ps(w, ib), m)));
+  static int aos(int l) { return kAos[l]; }
+  /// See the scalar add8: one 8-float add.
+  static void add8(float* slot, const float* w) {
+    _mm256_storeu_ps(slot, _mm256_add_ps(_mm256_loadu_ps(slot), _mm256_loadu_ps(w)));
   }
 };
 

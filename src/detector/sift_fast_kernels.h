@@ -30,19 +30,28 @@ struct GradientPatch {
 };
 
 /// Scratch memory of one descriptor computation (no allocation per keypoint): kDescrBlock
-/// vectors of samples between the vector pass and the scatter pass.
+/// vectors of samples between the vector pass and the scatter pass, and the sample sums.
 constexpr int kDescrBlock = 32;
+/// The descriptor's sample sums: one slot of 8 floats per (top-left cell, first orientation bin)
+/// of a sample's trilinear footprint, i.e. per (rr, cc, o0) with rr, cc = 0..4 (the sample's
+/// top-left cell of the 4x4 grid plus a border row/column: r0 + 1, c0 + 1) and o0 = 0..7, at
+/// ((rr * 5 + cc) * 8 + o0) * 8; float k = dr * 4 + dc * 2 + do of a slot is the weight that
+/// goes to cell (rr + dr, cc + dc), bin o0 + do (mod 8). A sample is then one 8-float add; the
+/// slots are folded into the 4x4x8 histogram once per descriptor. kDescrCopies interleaved copies
+/// (a power of two; the sample in column j uses copy j mod kDescrCopies) so that consecutive
+/// samples, which mostly share a slot, do not wait on each other's stores.
+constexpr int kDescrSlotFloats = 25 * 8 * 8;
+constexpr int kDescrCopies = 4;
 struct DescriptorScratch {
   float* weights = nullptr;  ///< kDescrBlock x 8 x 16 floats
-  int32_t* index = nullptr;  ///< kDescrBlock x 3 x 16 ints
+  int32_t* index = nullptr;  ///< kDescrBlock x 16 ints
   uint32_t* bits = nullptr;  ///< kDescrBlock lane masks
   float* gauss = nullptr;    ///< 2 x radius + 48 floats (the separable Gaussian weight)
+  /// kDescrCopies x kDescrSlotFloats floats, all zero on entry and left all zero on return
+  /// (cleared as they are read: no clearing pass per descriptor).
+  float* slots = nullptr;
+  float* sum = nullptr;      ///< kDescrSlotFloats floats: the copies summed
 };
-/// The descriptor histogram: 8 bins x (4 + 2) x (4 + 2) spatial cells (a border cell each side),
-/// accumulated in kDescrCopies interleaved copies (a power of two) of kDescrLayout floats.
-constexpr int kDescrCells = 36;
-constexpr int kDescrCopies = 4;
-constexpr int kDescrLayout = 8 * kDescrCells + 16;
 
 struct Kernels {
   const char* name;
@@ -78,12 +87,11 @@ struct Kernels {
   /// gauss: scratch of 2 x radius + 48 floats.
   void (*orientation_hist)(const GradientPatch& p, int radius, float sigma, int n, float* hist,
                            float* gauss);
-  /// OpenCV's raw descriptor histogram: hist has kDescrCopies x kDescrLayout floats (scratch,
-  /// cleared here); the result is hist[bin * 36 + (r + 1) * 6 + (c + 1)] for the 4x4 grid;
-  /// cos_t, sin_t are cos/sin of the descriptor angle divided by the histogram width; ori_deg
-  /// the descriptor angle in degrees.
+  /// OpenCV's raw descriptor histogram (before the 0.2 clip and normalisation) in its order:
+  /// raw[(row * 4 + col) * 8 + bin], 128 floats; cos_t, sin_t are cos/sin of the descriptor
+  /// angle divided by the histogram width; ori_deg the descriptor angle in degrees.
   void (*descriptor_hist)(const GradientPatch& p, int radius, float cos_t, float sin_t,
-                          float ori_deg, const DescriptorScratch& s, float* hist);
+                          float ori_deg, const DescriptorScratch& s, float* raw);
 };
 
 const Kernels& scalarKernels();

@@ -6,7 +6,8 @@
 //   to_int (exact for integral values, round-half-even otherwise), to_float, int add/mul/sub,
 //   gt lt ge le (float, -> M), ilt ige (int, -> M), mand mor, select(m, a, b), iselect,
 //   bits(m) (lane i -> bit i), first_lanes(n) (mask of lanes < n), interleave(lo, hi, out)
-//   (out[2i] = lo[i], out[2i+1] = hi[i]).
+//   (out[2i] = lo[i], out[2i+1] = hi[i]), transpose8 (8 vectors -> lane l's 8 values at
+//   out[aos(l)], contiguous), add8 (8-float add in place).
 // Everything here is elementwise or in a fixed order, so every V gives the same bits.
 //
 // Buffers passed to these kernels are padded: reading or writing up to 2 x 16 floats past the
@@ -236,17 +237,15 @@ void orientationHist(const GradientPatch& p, int radius, float sigma, int n, flo
 // OpenCV's descriptor histogram: trilinear weights of each sample into 2 x 2 cells x 2 of 8
 // orientation bins (bin 8 wraps to 0 directly). Two passes over blocks of up to kDescrBlock
 // vectors: the vector pass computes the weights of N samples at a time (iterations independent,
-// so they overlap), then the scatter pass adds them sample by sample, in row-major order.
-// Accumulator layout, bin-major: cell (rr, cc) (rr, cc = 0..5: the 4x4 grid plus a border) of
-// bin b at b * 36 + rr * 6 + cc, so that a sample's four cells (rr, cc), (rr, cc+1), (rr+1, cc),
-// (rr+1, cc+1) of one bin are floats 0, 1, 6, 7 from rr * 6 + cc (V::add_sample). The sample in
-// column j writes copy j mod kDescrCopies (kDescrLayout floats each), so that consecutive samples
-// do not wait on each other's stores. Result: hist[bin * 36 + cell], sum of the copies.
+// so they overlap) and each sample's slot (see kDescrSlotFloats), then the scatter pass adds
+// each sample's 8 weights to its slot with one 8-float add, sample by sample in row-major order.
+// The fold then sums the copies and gives each histogram entry its 8 slot terms in a fixed
+// order (the same on every path).
 void descriptorHist(const GradientPatch& p, int radius, float cos_t, float sin_t, float ori_deg,
-                    const DescriptorScratch& s, float* hist) {
+                    const DescriptorScratch& s, float* raw) {
   constexpr int N = V::N;
   constexpr int d = 4, n = 8;
-  for (int b = 0; b < kDescrCopies * kDescrLayout; b += N) V::store(hist + b, V::set1(0.f));
+  float* const slots = s.slots;
   const float bins_per_rad = n / 360.f;
   const float exp_scale = -1.f / (d * d * 0.5f);
   const int i0 = p.i0 > -radius ? p.i0 : -radius, i1 = p.i1 < radius ? p.i1 : radius;
@@ -255,9 +254,9 @@ void descriptorHist(const GradientPatch& p, int radius, float cos_t, float sin_t
   const V::F half_d = V::set1(static_cast<float>(d / 2)), half = V::set1(0.5f);
   const V::F lo = V::set1(-1.f), hi = V::set1(static_cast<float>(d));
   const V::F vori = V::set1(ori_deg), vbins = V::set1(bins_per_rad);
-  const V::F f7 = V::set1(7.f), f6 = V::set1(6.f), vN = V::set1(static_cast<float>(N));
-  const V::I seven = V::seti(7), copies = V::seti(kDescrCopies - 1), layout = V::seti(kDescrLayout);
-  const V::I cells = V::seti(kDescrCells), one = V::seti(1);
+  const V::F f5 = V::set1(5.f), f6 = V::set1(6.f), vN = V::set1(static_cast<float>(N));
+  const V::I seven = V::seti(7), copies = V::seti(kDescrCopies - 1), copy_floats = V::seti(kDescrSlotFloats);
+  const V::I slot_floats = V::seti(64), bin_floats = V::seti(8);
   int blocks = 0;
   // The Gaussian weight exp(-(c_rot^2 + r_rot^2) / 8) = g(i) g(j), g(k) = exp(-k^2 / (8 hw^2)).
   float* gw = s.gauss + radius + 16;
@@ -271,15 +270,16 @@ void descriptorHist(const GradientPatch& p, int radius, float cos_t, float sin_t
   auto flush = [&]() {  // the scatter pass over the block
     for (int q = 0; q < blocks; ++q) {
       const float* wbuf = s.weights + q * 8 * N;
-      const int32_t* cbuf = s.index + q * 3 * N;  // copy * kDescrLayout + cell (rr * 6 + cc)
-      const int32_t* o0buf = cbuf + N;            // 36 o0
-      const int32_t* o1buf = cbuf + 2 * N;        // 36 ((o0 + 1) mod 8)
+      const int32_t* slot = s.index + q * N;  // copy * kDescrSlotFloats + slot offset
       uint32_t bits = s.bits[q];
+      if (bits == V::bits(V::first_lanes(N))) {  // all lanes: no bit scan
+        for (int l = 0; l < N; ++l) V::add8(slots + slot[l], wbuf + V::aos(l));
+        continue;
+      }
       while (bits) {
         const int l = __builtin_ctz(bits);
         bits &= bits - 1;
-        float* h = hist + cbuf[l];
-        V::add_sample(h + o0buf[l], h + o1buf[l], wbuf + V::aos_lo(l), wbuf + V::aos_hi(l));
+        V::add8(slots + slot[l], wbuf + V::aos(l));
       }
     }
     blocks = 0;
@@ -345,22 +345,40 @@ void descriptorHist(const GradientPatch& p, int radius, float cos_t, float sin_t
       const V::F v_rco101 = V::mul(v_rc10, obin), v_rco100 = V::sub(v_rc10, v_rco101);
       const V::F v_rco011 = V::mul(v_rc01, obin), v_rco010 = V::sub(v_rc01, v_rco011);
       const V::F v_rco001 = V::mul(v_rc00, obin), v_rco000 = V::sub(v_rc00, v_rco001);
-      // Cell rr * 6 + cc = (r0 + 1) * 6 + c0 + 1 (exact small integers).
-      const V::F cell = V::fma(r0f, f6, V::add(c0f, f7));
-      int32_t* cbuf = s.index + blocks * 3 * N;
+      // Slot (rr * 5 + cc) * 64 + o0 * 8, rr * 5 + cc = (r0 + 1) * 5 + c0 + 1 (exact small integers).
+      const V::F cell = V::fma(r0f, f5, V::add(c0f, f6));
       const V::I copy = V::iand(V::to_int(jf), copies);
-      V::istore(cbuf, V::iadd(V::to_int(cell), V::imul(copy, layout)));
-      V::istore(cbuf + N, V::imul(o0, cells));
-      V::istore(cbuf + 2 * N, V::imul(V::iand(V::iadd(o0, one), seven), cells));
+      V::istore(s.index + blocks * N, V::iadd(V::iadd(V::imul(V::to_int(cell), slot_floats), V::imul(o0, bin_floats)),
+                                              V::imul(copy, copy_floats)));
       V::transpose8(v_rco000, v_rco001, v_rco010, v_rco011, v_rco100, v_rco101, v_rco110, v_rco111,
                     s.weights + blocks * 8 * N);
       s.bits[blocks++] = bits;
     }
   }
   flush();
-  for (int c = 1; c < kDescrCopies; ++c)
-    for (int b = 0; b < kDescrLayout; b += N)
-      V::store(hist + b, V::add(V::load(hist + b), V::load(hist + c * kDescrLayout + b)));
+  const V::F zero = V::set1(0.f);
+  float* const sum = s.sum;
+  for (int b = 0; b < kDescrSlotFloats; b += N) {
+    V::F t = V::load(slots + b);
+    V::store(slots + b, zero);
+    for (int c = 1; c < kDescrCopies; ++c) {
+      t = V::add(t, V::load(slots + c * kDescrSlotFloats + b));
+      V::store(slots + c * kDescrSlotFloats + b, zero);
+    }
+    V::store(sum + b, t);
+  }
+  // Cell (rr, cc) = (r + 1, c + 1), bin b: the terms k = dr * 4 + dc * 2 + do of the slots
+  // (rr - dr, cc - dc, (b - do) mod 8), added in k order.
+  for (int r = 0; r < d; ++r)
+    for (int c = 0; c < d; ++c)
+      for (int bin = 0; bin < n; ++bin) {
+        float acc = 0.f;
+        for (int k = 0; k < 8; ++k) {
+          const int dr = k >> 2, dc = (k >> 1) & 1, dob = k & 1;
+          acc += sum[(((r + 1 - dr) * 5 + (c + 1 - dc)) * 8 + ((bin - dob) & 7)) * 8 + k];
+        }
+        raw[(r * d + c) * n + bin] = acc;
+      }
 }
 
 const Kernels kTable = {kIsaName,   rowFilter,    colFilter,       upsampleRow,   dogRow,

@@ -65,20 +65,11 @@ struct V {
   static void transpose8(F a, F b, F c, F d, F e, F f, F g, F h, float* out) {
     out[0] = a, out[1] = b, out[2] = c, out[3] = d, out[4] = e, out[5] = f, out[6] = g, out[7] = h;
   }
-  static int aos_lo(int) { return 0; }
-  static int aos_hi(int) { return 4; }
-  /// Adds a descriptor sample (weights lo = w000 w001 w010 w011, hi = w100 w101 w110 w111, for
-  /// cell row r/r+1, column c/c+1, bin o0/o0+1) to its cells at a (bin o0) and b (bin o0+1):
-  /// floats 0, 1, 6, 7 are cells (r, c), (r, c+1), (r+1, c), (r+1, c+1).
-  static void add_sample(float* a, float* b, const float* lo, const float* hi) {
-    a[0] += lo[0];
-    a[1] += lo[2];
-    a[6] += hi[0];
-    a[7] += hi[2];
-    b[0] += lo[1];
-    b[1] += lo[3];
-    b[6] += hi[1];
-    b[7] += hi[3];
+  static constexpr int aos(int) { return 0; }
+  /// Adds a descriptor sample's weights w_k, k = dr * 4 + dc * 2 + do, to its slot: slot[k] += w_k
+  /// (see kDescrSlotFloats).
+  static void add8(float* slot, const float* w) {
+    for (int k = 0; k < 8; ++k) slot[k] += w[k];
   }
 };
 
