@@ -303,7 +303,8 @@ void sweepOctave(const si::Kernels& K, const Params& P, int o, const cv::Mat& in
   // y + 1 exist when the extremum test of row y runs (right after the last layer's block).
   constexpr int kDogRing = 8;
   const int n_dog = detect ? L - 1 : 0;
-  float* const dogs = detect ? ws.dog.get(static_cast<size_t>(n_dog) * 3 * kDogRing * S + 64) : nullptr;
+  // 16 floats ahead of the first row: dog_row writes d[-1].
+  float* const dogs = detect ? ws.dog.get(static_cast<size_t>(n_dog) * 3 * kDogRing * S + 64) + 16 : nullptr;
   auto dslot = [&](int k, int y, int which) {
     return dogs + (static_cast<size_t>(k * 3 + which) * kDogRing + (y % kDogRing)) * S;
   };

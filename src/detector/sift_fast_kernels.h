@@ -70,7 +70,7 @@ struct Kernels {
   void (*upsample_row)(const uint8_t* row0, const uint8_t* row1, float wa, float wb, float* blend,
                        float* out, int w, int m0, int m1);
   /// d[x] = b[x] - a[x]; mx/mn: max/min of d[x-1..x+1] for x in [1, width-1) (a[-1] and b[-1]
-  /// are read: rows are padded).
+  /// are read: rows are padded). Writes d[-1 .. width + 16).
   void (*dog_row)(const float* a, const float* b, float* d, float* mx, float* mn, int width);
   /// Scale-space extremum test at columns [c0, c1) of the middle DoG row: |v| > thr and v >= the
   /// 3x3x3 maximum (v > 0) or v <= the 3x3x3 minimum (v < 0). mx[k]/mn[k], k = 0..8: 3-tap

@@ -52,25 +52,40 @@ inline V::F expV(V::F x) {
   return V::mul(y, V::pow2(V::to_int(n)));
 }
 
+// C vectors of the row filter at once (C independent fused multiply-add chains), taps two at a
+// time (the loop overhead is shared; each chain's order stays k[0], k[1], ...).
+template <int C>
+inline void rowFilterVectors(const float* s, float* out, const float* k, int n) {
+  constexpr int N = V::N;
+  V::F a[C];
+  for (V::F& v : a) v = V::set1(0.f);
+  int j = 0;
+  for (; j + 1 < n; j += 2) {
+    const V::F k0 = V::set1(k[j]), k1 = V::set1(k[j + 1]);
+    for (int q = 0; q < C; ++q) a[q] = V::fma(V::load(s + j + q * N), k0, a[q]);
+    for (int q = 0; q < C; ++q) a[q] = V::fma(V::load(s + j + 1 + q * N), k1, a[q]);
+  }
+  if (j < n) {
+    const V::F k0 = V::set1(k[j]);
+    for (int q = 0; q < C; ++q) a[q] = V::fma(V::load(s + j + q * N), k0, a[q]);
+  }
+  for (int q = 0; q < C; ++q) V::store(out + q * N, a[q]);
+}
+
 void rowFilter(const float* in, float* out, int width, const float* k, int n) {
   constexpr int N = V::N;
   int x = 0;
-  // Eight independent chains of fused multiply-adds keep both FMA pipes busy.
-  for (; x + 8 * N <= width; x += 8 * N) {
-    V::F a[8];
-    for (V::F& v : a) v = V::set1(0.f);
-    const float* s = in + x;
-    for (int j = 0; j < n; ++j) {
-      const V::F kj = V::set1(k[j]);
-      for (int q = 0; q < 8; ++q) a[q] = V::fma(V::load(s + j + q * N), kj, a[q]);
-    }
-    for (int q = 0; q < 8; ++q) V::store(out + x + q * N, a[q]);
+  // Eight independent chains keep both FMA pipes busy; the rest of the row in 4, 2, 1 chains.
+  for (; x + 8 * N <= width; x += 8 * N) rowFilterVectors<8>(in + x, out + x, k, n);
+  if (x + 4 * N <= width) {
+    rowFilterVectors<4>(in + x, out + x, k, n);
+    x += 4 * N;
   }
-  for (; x < width; x += N) {
-    V::F a = V::set1(0.f);
-    for (int j = 0; j < n; ++j) a = V::fma(V::load(in + x + j), V::set1(k[j]), a);
-    V::store(out + x, a);
+  if (x + 2 * N <= width) {
+    rowFilterVectors<2>(in + x, out + x, k, n);
+    x += 2 * N;
   }
+  for (; x < width; x += N) rowFilterVectors<1>(in + x, out + x, k, n);
 }
 
 // Output row q (0 <= q < R) from input rows rows[q .. q + 2h] (centre rows[q + h]); R rows at once
@@ -145,14 +160,13 @@ void upsampleRow(const uint8_t* row0, const uint8_t* row1, float wa, float wb, f
 
 void dogRow(const float* a, const float* b, float* d, float* mx, float* mn, int width) {
   constexpr int N = V::N;
-  // The neighbours' differences are recomputed from a and b (the same subtraction, so the same
-  // values): reading d back at x +- 1 right after storing it would stall on store forwarding.
-  // Aligned from x = 0 (a[-1], b[-1] are padding; mx[0], mn[0] are not used).
-  for (int x = 0; x < width; x += N) V::store(d + x, V::sub(V::load(b + x), V::load(a + x)));
+  // The whole row of differences first (d[-1 .. width + N): a and b are padded), then the 3-tap
+  // max/min read back from it (the row is long, so the loads at x +- 1 no longer wait on the
+  // stores). Aligned from x = 0 (mx[0], mn[0] are not used).
+  d[-1] = b[-1] - a[-1];
+  for (int x = 0; x < width + N; x += N) V::store(d + x, V::sub(V::load(b + x), V::load(a + x)));
   for (int x = 0; x < width - 1; x += N) {
-    const V::F l = V::sub(V::load(b + x - 1), V::load(a + x - 1));
-    const V::F c = V::sub(V::load(b + x), V::load(a + x));
-    const V::F r = V::sub(V::load(b + x + 1), V::load(a + x + 1));
+    const V::F l = V::load(d + x - 1), c = V::load(d + x), r = V::load(d + x + 1);
     V::store(mx + x, V::max(V::max(l, c), r));
     V::store(mn + x, V::min(V::min(l, c), r));
   }
