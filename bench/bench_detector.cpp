@@ -45,9 +45,9 @@ int main(int argc, char** argv) {
       usage();
       return 0;
     } else if (a == "--frames" && i + 1 < argc) {
-      frames = std::max(1, std::atoi(argv[++i]));
+      frames = static_cast<int>(bench::intArg("bench_detector", "--frames", argv[++i], 1));
     } else if (a == "--seed" && i + 1 < argc) {
-      seed = std::strtoull(argv[++i], nullptr, 10);
+      seed = static_cast<uint64_t>(bench::intArg("bench_detector", "--seed", argv[++i], 0));
     } else if (a == "--texture" && i + 1 < argc) {
       texture = argv[++i];
     } else {

@@ -106,11 +106,11 @@ int main(int argc, char** argv) {
       usage();
       return 0;
     } else if (a == "--frames" && i + 1 < argc) {
-      frames = std::max(1, std::atoi(argv[++i]));
+      frames = static_cast<int>(bench::intArg("bench_sift", "--frames", argv[++i], 1));
     } else if (a == "--threads" && i + 1 < argc) {
-      threads = std::max(1, std::atoi(argv[++i]));
+      threads = static_cast<int>(bench::intArg("bench_sift", "--threads", argv[++i], 1));
     } else if (a == "--seed" && i + 1 < argc) {
-      seed = std::strtoull(argv[++i], nullptr, 10);
+      seed = static_cast<uint64_t>(bench::intArg("bench_sift", "--seed", argv[++i], 0));
     } else if (a == "--texture" && i + 1 < argc) {
       texture = argv[++i];
     } else if (a == "--profile" && i + 1 < argc) {

@@ -5,7 +5,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <cstdlib>
 #include <ctime>
+#include <string>
 #include <vector>
 
 namespace refgrasp::bench {
@@ -30,6 +33,30 @@ double threadCpuMs(F&& f) {
   f();
   clock_gettime(CLOCK_THREAD_CPUTIME_ID, &b);
   return 1e3 * static_cast<double>(b.tv_sec - a.tv_sec) + 1e-6 * static_cast<double>(b.tv_nsec - a.tv_nsec);
+}
+
+/// The value of a numeric option, at least min_value: on anything else (not a number, trailing
+/// characters, out of range) one line "<tool>: <option>: ..." on stderr and exit 2.
+inline double numberArg(const char* tool, const char* option, const char* text, double min_value) {
+  char* end = nullptr;
+  const double v = std::strtod(text, &end);
+  if (end == text || *end != '\0' || !std::isfinite(v) || v < min_value) {
+    std::fprintf(stderr, "%s: %s: expected a number >= %g, got '%s'\n", tool, option, min_value, text);
+    std::exit(2);
+  }
+  return v;
+}
+
+/// An integer option, at least min_value; the same one-line error and exit 2 otherwise.
+inline long long intArg(const char* tool, const char* option, const char* text, long long min_value) {
+  char* end = nullptr;
+  const double v = std::strtod(text, &end);
+  if (end == text || *end != '\0' || !std::isfinite(v) || v != std::floor(v) || v < static_cast<double>(min_value) ||
+      v > 9e15) {
+    std::fprintf(stderr, "%s: %s: expected an integer >= %lld, got '%s'\n", tool, option, min_value, text);
+    std::exit(2);
+  }
+  return static_cast<long long>(v);
 }
 
 /// Median of the samples (the mean of the two middle ones for an even count); NaN when empty.

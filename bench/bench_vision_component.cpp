@@ -56,13 +56,13 @@ int main(int argc, char** argv) {
       usage();
       return 0;
     } else if (a == "--frames" && i + 1 < argc) {
-      frames = std::max(1, std::atoi(argv[++i]));
+      frames = static_cast<int>(bench::intArg("bench_vision_component", "--frames", argv[++i], 1));
     } else if (a == "--rate" && i + 1 < argc) {
-      rate = std::max(0.1, std::atof(argv[++i]));
+      rate = bench::numberArg("bench_vision_component", "--rate", argv[++i], 0.1);
     } else if (a == "--seconds" && i + 1 < argc) {
-      seconds = std::max(1.0, std::atof(argv[++i]));
+      seconds = bench::numberArg("bench_vision_component", "--seconds", argv[++i], 1.0);
     } else if (a == "--domain" && i + 1 < argc) {
-      domain = std::atoi(argv[++i]);
+      domain = static_cast<int>(bench::intArg("bench_vision_component", "--domain", argv[++i], 0));
     } else {
       usage();
       return 2;
