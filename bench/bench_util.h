@@ -35,6 +35,17 @@ double threadCpuMs(F&& f) {
   return 1e3 * static_cast<double>(b.tv_sec - a.tv_sec) + 1e-6 * static_cast<double>(b.tv_nsec - a.tv_nsec);
 }
 
+/// CPU time of the whole process (every thread) during one call of f, milliseconds: for calls
+/// that use a thread pool, what they cost the machine's cores in all.
+template <class F>
+double processCpuMs(F&& f) {
+  timespec a{}, b{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &a);
+  f();
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &b);
+  return 1e3 * static_cast<double>(b.tv_sec - a.tv_sec) + 1e-6 * static_cast<double>(b.tv_nsec - a.tv_nsec);
+}
+
 /// The value of a numeric option, at least min_value: on anything else (not a number, trailing
 /// characters, out of range) one line "<tool>: <option>: ..." on stderr and exit 2.
 inline double numberArg(const char* tool, const char* option, const char* text, double min_value) {
