@@ -1,4 +1,4 @@
-// pose_replay: the robot's detection (and, once issue 8 lands, tracking) frame by frame on a
+// pose_replay: the robot's detection and tracking frame by frame on a
 // recording, a video or an image folder; poses, trajectory, overlay video, summary and plot.
 #include <unistd.h>
 
@@ -28,8 +28,10 @@ poses.csv, overlay.mp4 (or frames/*.png with --frames: outline, axes x red y gre
 frame number), summary.json and plot.png. The same input and options give the same poses.jsonl,
 byte for byte (timings only in summary.json "timing_ms"). Detector options: --detector-config
 FILE (every field: config/detector.yaml), --matcher and --pose override it.
-Tracking: the frame-to-frame tracker of issue 8 is not wired in yet; until then every frame is
-detected (modes detect / lost) and --no-track changes nothing.
+Tracking (the robot's pipeline, servo/target_tracker.h): a detection is confirmed by the next
+one, then the target is tracked frame to frame (KLT features aligned with the reference image);
+when the tracker loses it the frame is detected again, in the predicted region first, then in
+the whole frame. --no-track detects every frame.
 --input: a recording folder, a video file, an image folder (sorted; optional stamps.txt), a
 folder with left/ and right/ image folders (with --stereo), or any source spec:
 )";
@@ -135,7 +137,7 @@ int main(int argc, char** argv) {
 
   servo::ReplayOptions ropt;
   ropt.track = !no_track;
-  servo::PoseReplay replay(*det, ropt, /*trackers: issue 8*/ nullptr);
+  servo::PoseReplay replay(*det, ropt, servo::planarTrackerFactory(ropt.pipeline.tracker, det.get()));
   std::unique_ptr<servo::ReplayReport> report;
   try {
     servo::ReplayReportOptions o;

@@ -135,6 +135,28 @@ DenseRefineResult refineDense(const RegisteredObject& e, const Eigen::Matrix3d& 
   return r;
 }
 
+// Pose from a grid of pattern points mapped by a densely refined H (undistorted reference px ->
+// undistorted scene px).
+PoseResult poseFromDenseH(const RegisteredObject& e, const DetectorOptions& opt,
+                          const Eigen::Matrix3d& H, const Intrinsics& camera) {
+  const PlanarTarget& target = *e.model.target;
+  const int n = opt.dense.pose_grid;
+  std::vector<Eigen::Vector3d> X;
+  std::vector<Eigen::Vector2d> y;
+  const auto& c = e.corners_und_px;
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < n; ++j) {
+      const double a = (i + 0.5) / n, b = (j + 0.5) / n;
+      const Eigen::Vector2d r =
+          (1 - b) * ((1 - a) * c[0] + a * c[1]) + b * ((1 - a) * c[3] + a * c[2]);
+      const auto Xo = target.backProject(r);
+      if (!Xo) continue;
+      X.push_back(*Xo);
+      y.push_back(applyHomography(H, r));
+    }
+  return estimatePoseRefined(X, y, target, camera.K(), opt.pose_options);
+}
+
 PoseResult estimatePose(const RegisteredObject& e, const DetectorOptions& opt,
                         const MatchCandidate& match, const Features& scene,
                         const Intrinsics& camera, PoseMethod method) {
@@ -145,22 +167,7 @@ PoseResult estimatePose(const RegisteredObject& e, const DetectorOptions& opt,
   if (opt.dense.enabled && !e.pyramid.empty() && !scene.image.empty()) {
     const DenseRefineResult dr = refineDense(e, match.H, scene.image, camera, opt.dense);
     if (dr.ok) {
-      // Pose from a grid of pattern points mapped by the refined H.
-      const int n = opt.dense.pose_grid;
-      std::vector<Eigen::Vector3d> X;
-      std::vector<Eigen::Vector2d> y;
-      const auto& c = e.corners_und_px;
-      for (int i = 0; i < n; ++i)
-        for (int j = 0; j < n; ++j) {
-          const double a = (i + 0.5) / n, b = (j + 0.5) / n;
-          const Eigen::Vector2d r =
-              (1 - b) * ((1 - a) * c[0] + a * c[1]) + b * ((1 - a) * c[3] + a * c[2]);
-          const auto Xo = target.backProject(r);
-          if (!Xo) continue;
-          X.push_back(*Xo);
-          y.push_back(applyHomography(dr.H, r));
-        }
-      const PoseResult p = estimatePoseRefined(X, y, target, camera.K(), opt.pose_options);
+      const PoseResult p = poseFromDenseH(e, opt, dr.H, camera);
       if (p.ok) return p;
     }
   }
@@ -481,6 +488,40 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
     res.time_ms.pose += msSince(t);
   }
   return res;
+}
+
+PoseAlignment Detector::alignPose(const cv::Mat& image, const Intrinsics& camera, int object,
+                                 const Pose& cMo, const DenseRefineOptions* dense) const {
+  PoseAlignment out;
+  try {
+    if (object < 0 || object >= objectCount() || !cMo.isFinite()) return out;
+    const RegisteredObject& e = objects_[static_cast<size_t>(object)];
+    if (!e.model.target || e.pyramid.empty() || !validateImage(image, camera).empty()) return out;
+    cv::Mat gray = image;
+    if (image.channels() == 3) cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
+    if (image.channels() == 4) cv::cvtColor(image, gray, cv::COLOR_BGRA2GRAY);
+    // The homography cMo predicts: undistorted reference px -> undistorted scene px.
+    std::vector<Eigen::Vector2d> ref(4), und(4);
+    for (int i = 0; i < 4; ++i) {
+      const Eigen::Vector3d Xc = cMo * e.model.target->corners_o[i];
+      if (!(Xc.z() > 1e-6)) return out;
+      ref[i] = e.corners_und_px[i];
+      und[i] = projectPinhole(camera.K(), Xc);
+    }
+    const Eigen::Matrix3d H = fitHomographyLeastSquares(ref, und);
+    if (!H.allFinite()) return out;
+    const DenseRefineResult dr = refineDense(e, H, gray, camera, dense ? *dense : opt_.dense);
+    out.correlation = dr.correlation;
+    out.corner_shift_px = dr.corner_shift_px;
+    if (!dr.ok) return out;
+    const PoseResult p = poseFromDenseH(e, opt_, dr.H, camera);
+    if (!p.ok || !p.cMo.isFinite()) return out;
+    out.ok = true;
+    out.cMo = p.cMo;
+  } catch (...) {  // OpenCV, out of memory: not aligned
+    out.ok = false;
+  }
+  return out;
 }
 
 StereoDetectionResult Detector::detectStereo(const cv::Mat& left, const cv::Mat& right,

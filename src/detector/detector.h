@@ -155,6 +155,14 @@ struct StereoDetectionResult {
   DetectionResult left, right;
 };
 
+/// Photometric alignment of a pose (Detector::alignPose).
+struct PoseAlignment {
+  bool ok = false;
+  Pose cMo;                    ///< aligned object frame in the camera frame (metres, radians)
+  double correlation = 0;      ///< final ECC correlation coefficient
+  double corner_shift_px = 0;  ///< largest pattern corner move, aligned vs given pose
+};
+
 class Detector {
  public:
   /// Throws std::invalid_argument when opt.check() fails.
@@ -177,6 +185,16 @@ class Detector {
   /// \param query where to look (default: every object in the whole image)
   DetectionResult detect(const cv::Mat& image, const Intrinsics& camera,
                          const FrameStamp& frame = {}, const DetectionQuery& query = {}) const;
+
+  /// Aligns the object's reference with `image` starting from the pose cMo (e.g. a tracker's):
+  /// the dense ECC refinement of the refined pose method (options.dense), on the homography cMo
+  /// predicts, then the pose from the grid it maps. ok = false (never a throw) when the object
+  /// has no usable reference pyramid (2D-only, distorted reference camera, pattern region not a
+  /// rectangle), the pattern is behind the camera, the image is unusable, or ECC fails, moves a
+  /// corner more than dense.max_corner_shift_px or ends below dense.min_correlation.
+  /// dense: the refinement's options (nullptr: options().dense).
+  PoseAlignment alignPose(const cv::Mat& image, const Intrinsics& camera, int object,
+                          const Pose& cMo, const DenseRefineOptions* dense = nullptr) const;
 
   /// Detects in each eye independently (each with its own intrinsics) and fuses the best
   /// instance of every object (fuseStereo). Poses in the LEFT camera frame.

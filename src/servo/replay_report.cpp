@@ -285,6 +285,10 @@ std::vector<std::string> ReplayReport::jsonLines(const ReplayFrame& r, bool tag_
     j["mode"] = toString(o.mode);
     detectionFields(o, &j);
     if (!o.eyes.empty()) j["eyes"] = o.eyes;
+    if (o.mode != TrackMode::kLost) j["confirmed"] = o.confirmed;
+    if (o.mode == TrackMode::kTrack)
+      j["track"] = {{"features", o.quality.features},
+                    {"projection_error_px", o.quality.projection_error_px}};
     if (o.truth_cMo) {
       j["truth"] = poseJson(*o.truth_cMo);
       if (o.cMo)

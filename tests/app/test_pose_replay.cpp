@@ -69,36 +69,50 @@ TEST(PoseReplayApp, ARecordedSequenceReplaysTwiceWithIdenticalPoses) {
     EXPECT_LE(seq[5].visible, 0.05);   // out of view
     EXPECT_LE(seq[11].visible, 0.05);  // behind the occluder
   }
-  const fs::path a = scratch("out_a"), b = scratch("out_b");
+  const fs::path a = scratch("out_a"), a2 = scratch("out_a2"), b = scratch("out_b");
   const AppRun ra = runApp("pose_replay", kObject + " --input " + rec.string() + " --output " + a.string());
   ASSERT_EQ(ra.status, 0) << ra.err;
   EXPECT_NE(ra.err.find("frames"), std::string::npos);  // progress bar
+  const AppRun ra2 = runApp("pose_replay", kObject + " --input " + rec.string() + " --output " + a2.string());
+  ASSERT_EQ(ra2.status, 0) << ra2.err;
   const AppRun rb = runApp("pose_replay", kObject + " --input " + rec.string() + " --output " +
                                               b.string() + " --frames --no-track");
   ASSERT_EQ(rb.status, 0) << rb.err;
   const std::string pa = readFile(a / "poses.jsonl");
-  EXPECT_EQ(pa, readFile(b / "poses.jsonl"));  // byte for byte (no tracker yet: --no-track is the same)
+  EXPECT_EQ(pa, readFile(a2 / "poses.jsonl"));  // byte for byte
   const std::vector<json> lines = jsonLines(pa);
+  const std::vector<json> lines_b = jsonLines(readFile(b / "poses.jsonl"));
   ASSERT_EQ(lines.size(), seq.size());
-  int detect = 0;
+  ASSERT_EQ(lines_b.size(), seq.size());
+  int detect = 0, track = 0, posed = 0, posed_b = 0;
   for (size_t k = 0; k < seq.size(); ++k) {
     EXPECT_EQ(lines[k]["frame"], k);
     EXPECT_DOUBLE_EQ(lines[k]["stamp"].get<double>(), seq[k].frame.stamp);
-    const std::string mode = lines[k]["mode"];
-    if (mode == "detect") {
-      ++detect;
+    const std::string mode = lines[k]["mode"], mode_b = lines_b[k]["mode"];
+    EXPECT_NE(mode_b, "track") << k;  // --no-track detects every frame
+    detect += mode == "detect";
+    track += mode == "track";
+    posed += mode != "lost";
+    posed_b += mode_b != "lost";
+    if (mode != "lost") {
       ASSERT_TRUE(lines[k].contains("error")) << lines[k].dump();
+      EXPECT_TRUE(lines[k].contains("confirmed")) << lines[k].dump();
     }
+    if (mode == "track") EXPECT_TRUE(lines[k]["track"].contains("features")) << lines[k].dump();
     if (seq[k].visible >= 0.95) {
-      EXPECT_EQ(mode, "detect") << k;
+      EXPECT_NE(mode, "lost") << k;
+      EXPECT_EQ(mode_b, "detect") << k;
       EXPECT_LT(lines[k]["error"]["translation_m"].get<double>(), 0.009) << k;
       EXPECT_LT(lines[k]["error"]["rotation_deg"].get<double>(), 1.0) << k;
     }
     if (seq[k].visible <= 0.05) {
       EXPECT_EQ(mode, "lost") << k;
+      EXPECT_EQ(mode_b, "lost") << k;
     }
   }
-  EXPECT_EQ(lineCount(readFile(a / "trajectory.tum")), 1u + detect);
+  EXPECT_GT(track, 0);
+  EXPECT_GE(posed, posed_b);
+  EXPECT_EQ(lineCount(readFile(a / "trajectory.tum")), 1u + detect + track);
   EXPECT_EQ(lineCount(readFile(a / "poses.csv")), 1u + seq.size());
   EXPECT_TRUE(fs::exists(a / "overlay.mp4"));
   EXPECT_TRUE(fs::exists(b / "frames/000000.png"));
@@ -107,6 +121,7 @@ TEST(PoseReplayApp, ARecordedSequenceReplaysTwiceWithIdenticalPoses) {
   EXPECT_EQ(s["frames"], seq.size());
   EXPECT_EQ(s["frames_failed"], 0);
   EXPECT_EQ(s["objects"][0]["modes"]["detect"], detect);
+  EXPECT_EQ(s["objects"][0]["modes"]["track"], track);
   EXPECT_TRUE(s["objects"][0].contains("ground_truth"));
   EXPECT_EQ(cv::imread((a / "plot.png").string()).cols, 1280);
 }

@@ -61,13 +61,14 @@ struct ScriptedTracker : servo::FrameTracker {
   int frames = 0, left = 0;
   size_t now = 0;  ///< the frame being processed (set by the test)
   std::vector<size_t>* started_at = nullptr;
-  void start(const cv::Mat&, const Intrinsics&, const Pose&) override {
+  servo::TrackStep start(const cv::Mat&, const Intrinsics&, const Pose& cMo) override {
     left = frames;
     started_at->push_back(now);
+    return {true, cMo, {}, ""};
   }
-  std::optional<Pose> track(const cv::Mat&, const Intrinsics&) override {
-    if (left-- <= 0) return std::nullopt;
-    return (*truth)[now];
+  servo::TrackStep track(const cv::Mat&, const Intrinsics&, const std::optional<Pose>&) override {
+    if (left-- <= 0) return {false, Pose(), {}, "scripted loss"};
+    return {true, (*truth)[now], {}, ""};
   }
 };
 
@@ -169,7 +170,9 @@ TEST(PoseReplay, ATrackerRunsBetweenDetectionsAndDetectionResumesWhenItLoses) {
   for (const auto& f : seq) truth.push_back(f.frame.truth[0].cMo);
   std::vector<size_t> started_at;
   ScriptedTracker* tracker = nullptr;
-  servo::PoseReplay replay(teaBoxDetector(), {}, [&](const detector::ObjectModel&) {
+  servo::ReplayOptions options;
+  options.pipeline.confirm_detections = 1;  // confirmation has its own test (test_target_tracker)
+  servo::PoseReplay replay(teaBoxDetector(), options, [&](const detector::ObjectModel&) {
     auto t = std::make_unique<ScriptedTracker>();
     t->truth = &truth;
     t->frames = 2;
@@ -236,4 +239,68 @@ TEST(PoseReplay, AFrameTheDetectorCannotUseIsAOneLineErrorAndResetsTheTrackers) 
   EXPECT_FALSE(d.ok);
   const std::vector<std::string> line = servo::ReplayReport::jsonLines(d, false);
   EXPECT_EQ(line.at(0), R"({"frame":3,"index":-1,"stamp":0.2,"mode":"lost","found":false,"error_text":"x.png: cannot decode as an image"})");
+}
+
+// The robot's pipeline with the project's tracker (what pose_replay runs by default) against
+// detection on every frame (--no-track), on the occlusion sequence: the tracked poses keep the
+// detector's tolerances, the modes change where the target leaves, hides and comes back, the
+// output is the same twice, and far fewer frames need the detector.
+TEST(PoseReplay, TrackingFollowsTheSequenceWithinTheDetectorsTolerances) {
+  const auto& seq = sequence();
+  const auto trackers = servo::planarTrackerFactory({}, &teaBoxDetector());
+  servo::PoseReplay tracked(teaBoxDetector(), {}, trackers);
+  ASSERT_TRUE(tracked.tracking());
+  const std::vector<servo::ReplayFrame> a = replayAll(tracked);
+  servo::ReplayOptions no_track;
+  no_track.track = false;
+  servo::PoseReplay detect_only(teaBoxDetector(), no_track, trackers);
+  ASSERT_FALSE(detect_only.tracking());
+  const std::vector<servo::ReplayFrame> b = replayAll(detect_only);
+  std::string modes, modes_b;
+  int poses = 0, poses_b = 0, calls = 0, calls_b = 0, track_frames = 0;
+  double worst_rot = 0, worst_trans = 0;
+  for (size_t k = 0; k < seq.size(); ++k) {
+    const servo::ObjectFrame& o = a[k].objects.at(0);
+    const servo::ObjectFrame& ob = b[k].objects.at(0);
+    ASSERT_TRUE(a[k].ok && b[k].ok);
+    modes += o.mode == TrackMode::kDetect ? 'D' : o.mode == TrackMode::kTrack ? 'T' : '.';
+    modes_b += ob.mode == TrackMode::kDetect ? 'D' : ob.mode == TrackMode::kTrack ? 'T' : '.';
+    poses += o.cMo.has_value();
+    poses_b += ob.cMo.has_value();
+    calls += a[k].detector_calls;
+    calls_b += b[k].detector_calls;
+    track_frames += o.mode == TrackMode::kTrack;
+    EXPECT_EQ(o.cMo.has_value(), o.corners.has_value()) << k;
+    if (o.cMo) {
+      const double dist = o.truth_cMo->t.norm();
+      const double trans = translationError(*o.cMo, *o.truth_cMo) / dist;
+      const double rot = rotationError(*o.cMo, *o.truth_cMo) * 180 / M_PI;
+      worst_trans = std::max(worst_trans, trans);
+      worst_rot = std::max(worst_rot, rot);
+      EXPECT_LT(trans, 0.01) << "frame " << k;
+      if (seq[k].visible >= 0.95) EXPECT_LT(rot, 1.0) << "frame " << k;
+      else EXPECT_LT(rot, 3.0) << "frame " << k << " partly visible (" << seq[k].visible << ")";
+    }
+    if (seq[k].visible >= 0.95) EXPECT_NE(o.mode, TrackMode::kLost) << "frame " << k << " fully visible";
+    if (seq[k].visible <= 0.05) EXPECT_EQ(o.mode, TrackMode::kLost) << "frame " << k << " invisible";
+    if (o.mode != TrackMode::kLost && o.mode == TrackMode::kTrack) EXPECT_TRUE(o.confirmed) << k;
+  }
+  std::printf("tracked:  %s (%d poses, %d detector calls; worst %.3f %% of distance, %.2f deg)\n"
+              "no-track: %s (%d poses, %d detector calls)\n",
+              modes.c_str(), poses, calls, 100 * worst_trans, worst_rot, modes_b.c_str(), poses_b, calls_b);
+  // Detect, confirm, then track while it is in view; lost out of view and behind the panel; found
+  // again by the detector; tracked at the end.
+  EXPECT_EQ(modes.substr(0, 6), "DDTTTT") << modes;
+  EXPECT_EQ(modes.substr(9, 5), ".....") << modes;
+  EXPECT_EQ(modes[14], 'D') << modes;  // re-entering: whole-frame detection
+  EXPECT_EQ(modes.substr(21, 3), "...") << modes;
+  EXPECT_EQ(modes.substr(28), "TTTT") << modes;
+  EXPECT_GE(track_frames, 12);
+  EXPECT_GE(poses, poses_b);
+  EXPECT_LE(3 * (poses - track_frames), 2 * poses_b) << "the tracker spares the detector";
+  // Deterministic: the same poses.jsonl lines again.
+  servo::PoseReplay again(teaBoxDetector(), {}, trackers);
+  const std::vector<servo::ReplayFrame> c = replayAll(again);
+  for (size_t k = 0; k < seq.size(); ++k)
+    EXPECT_EQ(servo::ReplayReport::jsonLines(a[k], false), servo::ReplayReport::jsonLines(c[k], false)) << k;
 }

@@ -1,0 +1,496 @@
+#include "servo/target_tracker.h"
+
+#include <chrono>
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+#include <stdexcept>
+
+namespace refgrasp::servo {
+
+const char* toString(TrackMode m) {
+  switch (m) {
+    case TrackMode::kDetect: return "detect";
+    case TrackMode::kTrack: return "track";
+    case TrackMode::kLost: return "lost";
+  }
+  return "?";
+}
+
+const char* toString(SearchScope s) {
+  switch (s) {
+    case SearchScope::kNone: return "none";
+    case SearchScope::kPrior: return "prior";
+    case SearchScope::kWholeFrame: return "whole";
+  }
+  return "?";
+}
+
+void TargetTrackerOptions::check() const {
+  auto need = [](bool ok, const char* field, const char* problem) {
+    if (!ok) throw std::invalid_argument(std::string("TargetTrackerOptions.") + field + ": " + problem);
+  };
+  need(confirm_detections >= 1, "confirm_detections", "must be >= 1");
+  need(std::isfinite(confirm_max_translation_fraction) && confirm_max_translation_fraction > 0,
+       "confirm_max_translation_fraction", "must be > 0");
+  need(std::isfinite(confirm_max_rotation_rad) && confirm_max_rotation_rad > 0,
+       "confirm_max_rotation_rad", "must be > 0");
+  need(confirm_max_frames >= confirm_detections, "confirm_max_frames", "must be >= confirm_detections");
+  need(prior_frames >= 0, "prior_frames", "must be >= 0");
+  need(std::isfinite(prior_roi_margin) && prior_roi_margin >= 0, "prior_roi_margin", "must be >= 0");
+  need(std::isfinite(prior_scale_margin) && prior_scale_margin >= 1, "prior_scale_margin", "must be >= 1");
+  need(redetect_every_frames >= 0, "redetect_every_frames", "must be >= 0");
+  tracker.check();
+}
+
+const TargetState* TargetFrame::find(int object) const {
+  for (const TargetState& o : objects)
+    if (o.object == object) return &o;
+  return nullptr;
+}
+
+std::optional<Pose> transportPose(const Pose& c1Mo, const robot::CaptureState& from,
+                                  const robot::CaptureState& to) {
+  if (!from.bMc || !to.bMc) return std::nullopt;
+  Pose w1 = *from.bMc, w2 = *to.bMc;  // camera in the base frame, or in the odometry frame
+  if (from.wMb_odom && to.wMb_odom) {
+    w1 = *from.wMb_odom * w1;
+    w2 = *to.wMb_odom * w2;
+  }
+  return w2.inverse() * w1 * c1Mo;
+}
+
+std::array<Eigen::Vector2d, 4> projectPattern(const detector::ObjectModel& object, const Pose& cMo,
+                                              const Intrinsics& camera) {
+  std::array<Eigen::Vector2d, 4> px;
+  for (size_t i = 0; i < 4; ++i) px[i] = camera.project(cMo * object.target->corners_o[i]);
+  return px;
+}
+
+namespace {
+
+cv::Mat toGray(const cv::Mat& image) {
+  if (image.channels() == 1) return image;
+  cv::Mat g;
+  cv::cvtColor(image, g, image.channels() == 4 ? cv::COLOR_BGRA2GRAY : cv::COLOR_BGR2GRAY);
+  return g;
+}
+
+double msSince(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+
+/// One eye's image and camera, and where the other eye sits (lMe: eye in the left frame).
+struct Eye {
+  cv::Mat gray;
+  Intrinsics camera;
+  Pose lMe;
+};
+
+/// Detection of one object in one frame, fused over the eyes (mono: the left only).
+struct EyesDetection {
+  detector::Detection eye[2];
+  std::optional<Pose> lMo;
+  detector::EyesUsed eyes = detector::EyesUsed::kNone;
+};
+
+}  // namespace
+
+struct TargetTracker::Impl {
+  struct Target {
+    std::unique_ptr<FrameTracker> tracker[2];  ///< left (or mono), right
+    bool active[2] = {false, false};
+    bool confirmed = false;          ///< internal: survives a short loss (prior_frames)
+    int agree = 0;                   ///< consecutive agreeing detections
+    int unconfirmed_frames = 0;      ///< frames since the hypothesis appeared, while unconfirmed
+    std::optional<Pose> last_cMo;    ///< left camera at the capture of the last pose
+    robot::CaptureState last_capture;
+    int frames_since_pose = 1 << 20; ///< 0: the previous frame had a pose
+    int frames_since_detection = 1 << 20;
+    std::optional<Pose> velocity;    ///< pose change over the last frame (camera frame)
+    bool anyActive() const { return active[0] || active[1]; }
+    void stop() { active[0] = active[1] = false; }
+  };
+
+  Impl(const detector::Detector& d, const TargetTrackerOptions& o, TrackerFactory f)
+      : det(d), opt(o) {
+    opt.check();
+    if (!f && opt.track) f = planarTrackerFactory(opt.tracker, &det);
+    for (int id = 0; id < det.objectCount(); ++id) {
+      Target t;
+      // Only 3D objects can be tracked (the tracker needs a pose).
+      if (f && opt.track && det.object(id).has3d()) t.tracker[0] = f(det.object(id));
+      targets.push_back(std::move(t));
+    }
+    factory = std::move(f);
+  }
+
+  /// The right eyes' trackers, made on the first stereo frame.
+  void makeRightTrackers() {
+    for (int id = 0; id < det.objectCount(); ++id) {
+      Target& t = targets[static_cast<size_t>(id)];
+      if (t.tracker[0] && !t.tracker[1]) t.tracker[1] = factory(det.object(id));
+    }
+  }
+
+  bool tracking() const {
+    for (const Target& t : targets)
+      if (t.tracker[0]) return true;
+    return false;
+  }
+
+  TargetFrame begin(const FrameStamp& stamp, const robot::CaptureState& capture) const {
+    TargetFrame r;
+    r.stamp = stamp;
+    r.capture = capture;
+    for (int id = 0; id < det.objectCount(); ++id) {
+      TargetState s;
+      s.object = id;
+      s.name = det.object(id).name;
+      s.detection.object = id;
+      r.objects.push_back(s);
+    }
+    return r;
+  }
+
+  TargetFrame failed(const FrameStamp& stamp, const robot::CaptureState& capture,
+                     const std::string& error) {
+    TargetFrame r = begin(stamp, capture);
+    r.ok = false;
+    r.error = error;
+    for (Target& t : targets) {
+      t.stop();
+      t.frames_since_pose = t.frames_since_detection = 1 << 20;
+      t.confirmed = false;
+      t.agree = 0;
+      t.velocity.reset();
+    }
+    return r;
+  }
+
+  /// The pose expected in this frame from the last one: camera motion when the captures know
+  /// it, else the last frame-to-frame motion (constant_velocity), else the last pose.
+  std::optional<Pose> predict(const Target& t, const robot::CaptureState& now) const {
+    if (!t.last_cMo) return std::nullopt;
+    if (auto p = transportPose(*t.last_cMo, t.last_capture, now)) return p;
+    if (opt.constant_velocity && t.velocity && t.frames_since_pose == 0) return *t.velocity * *t.last_cMo;
+    return t.last_cMo;
+  }
+
+  bool agrees(const Pose& a, const Pose& b) const {
+    const double dist = std::max(1e-3, 0.5 * (a.t.norm() + b.t.norm()));
+    return translationError(a, b) <= opt.confirm_max_translation_fraction * dist &&
+           rotationError(a, b) <= opt.confirm_max_rotation_rad;
+  }
+
+  /// Detects the objects with a non-empty request in every eye: a prior pose (left frame) or the
+  /// whole frame. Fills out[id]; false + error when the detector rejects the frame.
+  bool detectObjects(const std::vector<Eye>& eyes, const FrameStamp& stamp,
+                     const std::vector<std::optional<std::optional<Pose>>>& request,
+                     std::vector<EyesDetection>* out, std::string* error) const {
+    const int n = det.objectCount();
+    bool all_whole = true, any = false;
+    for (const auto& r : request) {
+      any = any || r.has_value();
+      all_whole = all_whole && r.has_value() && !r->has_value();
+    }
+    if (!any) return true;
+    for (size_t e = 0; e < eyes.size(); ++e) {
+      detector::DetectionQuery q;
+      if (!all_whole) {
+        q.only_priors = true;
+        for (int id = 0; id < n; ++id) {
+          const auto& r = request[static_cast<size_t>(id)];
+          if (!r) continue;
+          detector::ObjectPrior p;
+          p.object = id;
+          if (r->has_value()) {
+            p.cMo = eyes[e].lMe.inverse() * **r;
+            p.roi_margin = opt.prior_roi_margin;
+            p.scale_margin = opt.prior_scale_margin;
+          } else {
+            p.roi = cv::Rect(0, 0, eyes[e].camera.width, eyes[e].camera.height);
+          }
+          q.priors.push_back(p);
+        }
+      }
+      const detector::DetectionResult d = det.detect(eyes[e].gray, eyes[e].camera, stamp, q);
+      if (!d.ok) {
+        *error = (eyes.size() == 2 ? (e == 0 ? "left: " : "right: ") : "") + d.error;
+        return false;
+      }
+      for (int id = 0; id < n; ++id) {
+        if (!request[static_cast<size_t>(id)]) continue;
+        EyesDetection& o = (*out)[static_cast<size_t>(id)];
+        o.eye[e].object = id;
+        if (const auto hit = d.find(id)) o.eye[e] = *hit;
+      }
+    }
+    for (int id = 0; id < n; ++id) {
+      if (!request[static_cast<size_t>(id)]) continue;
+      EyesDetection& o = (*out)[static_cast<size_t>(id)];
+      if (eyes.size() == 1) {
+        if (o.eye[0].found) {
+          o.lMo = o.eye[0].cMo;  // empty for 2D-only objects
+          o.eyes = detector::EyesUsed::kLeft;
+        }
+      } else {
+        StereoRig rig;
+        rig.lMr = eyes[1].lMe;
+        const detector::FusedPose f = detector::fuseStereo(o.eye[0].found ? o.eye[0].cMo : std::nullopt,
+                                                           o.eye[1].found ? o.eye[1].cMo : std::nullopt, rig);
+        o.lMo = f.lMo;
+        o.eyes = f.eyes;
+        // 2D-only objects: the eyes that saw them, without a pose (as Detector::detectStereo).
+        if (!det.object(id).has3d() && f.eyes == detector::EyesUsed::kNone) {
+          if (o.eye[0].found && o.eye[1].found) o.eyes = detector::EyesUsed::kBoth;
+          else if (o.eye[0].found) o.eyes = detector::EyesUsed::kLeft;
+          else if (o.eye[1].found) o.eyes = detector::EyesUsed::kRight;
+        }
+      }
+    }
+    return true;
+  }
+
+  /// Starts the trackers of every eye at lMo (an eye that cannot see the pattern stays stopped).
+  void startTrackers(Target* t, const std::vector<Eye>& eyes, const Pose& lMo) {
+    for (size_t e = 0; e < eyes.size(); ++e) {
+      if (!t->tracker[e]) continue;
+      t->active[e] = t->tracker[e]->start(eyes[e].gray, eyes[e].camera, eyes[e].lMe.inverse() * lMo).ok;
+    }
+  }
+
+  /// Tracks the active eyes from `pred`; fuses. Empty when every eye lost it.
+  std::optional<Pose> trackEyes(Target* t, const std::vector<Eye>& eyes, const Pose& pred,
+                                TargetState* s) {
+    std::optional<Pose> eye_lMo[2];
+    for (size_t e = 0; e < eyes.size(); ++e) {
+      if (!t->active[e]) continue;
+      const TrackStep step =
+          t->tracker[e]->track(eyes[e].gray, eyes[e].camera, eyes[e].lMe.inverse() * pred);
+      (e == 0 ? s->quality : s->quality_right) = step.quality;
+      t->active[e] = step.ok;
+      if (step.ok) eye_lMo[e] = eyes[e].lMe * step.cMo;
+      else if (s->lost_reason.empty()) s->lost_reason = (eyes.size() == 2 ? (e == 0 ? "left: " : "right: ") : "") + step.lost_reason;
+    }
+    if (eyes.size() == 1) {
+      if (eye_lMo[0]) s->eyes = detector::EyesUsed::kLeft;
+      return eye_lMo[0];
+    }
+    StereoRig rig;
+    rig.lMr = eyes[1].lMe;
+    const detector::FusedPose f = detector::fuseStereo(
+        eye_lMo[0], eye_lMo[1] ? std::optional<Pose>(eyes[1].lMe.inverse() * *eye_lMo[1]) : std::nullopt, rig);
+    s->eyes = f.eyes;
+    if (f.lMo) {
+      // An eye that lost the pattern restarts from the other one's pose when it sees it again.
+      for (size_t e = 0; e < 2; ++e)
+        if (!t->active[e] && t->tracker[e])
+          t->active[e] = t->tracker[e]->start(eyes[e].gray, eyes[e].camera, eyes[e].lMe.inverse() * *f.lMo).ok;
+    }
+    return f.lMo;
+  }
+
+  TargetFrame run(const std::vector<Eye>& eyes, const FrameStamp& stamp,
+                  const robot::CaptureState& capture, const std::vector<robot::ObjectTruth>&) {
+    TargetFrame r = begin(stamp, capture);
+    if (eyes.size() == 2) makeRightTrackers();
+    const int n = det.objectCount();
+    std::vector<std::optional<Pose>> pred(static_cast<size_t>(n));
+    std::vector<std::optional<Pose>> tracked(static_cast<size_t>(n));
+    // 1. Track.
+    for (int id = 0; id < n; ++id) {
+      Target& t = targets[static_cast<size_t>(id)];
+      TargetState& s = r.objects[static_cast<size_t>(id)];
+      pred[static_cast<size_t>(id)] = predict(t, capture);
+      if (t.anyActive() && pred[static_cast<size_t>(id)])
+        tracked[static_cast<size_t>(id)] = trackEyes(&t, eyes, *pred[static_cast<size_t>(id)], &s);
+      if (!tracked[static_cast<size_t>(id)]) t.stop();
+    }
+    // 2. What to detect: nothing (tracked, confirmed), the predicted region, or the whole frame.
+    std::vector<std::optional<std::optional<Pose>>> request(static_cast<size_t>(n));
+    for (int id = 0; id < n; ++id) {
+      const Target& t = targets[static_cast<size_t>(id)];
+      const auto& tr = tracked[static_cast<size_t>(id)];
+      if (!t.tracker[0]) {
+        request[static_cast<size_t>(id)] = std::optional<Pose>();  // detect-only: whole frame
+      } else if (tr) {
+        const bool due = opt.redetect_every_frames > 0 && t.frames_since_detection + 1 >= opt.redetect_every_frames;
+        if (!t.confirmed || due) request[static_cast<size_t>(id)] = tr;
+      } else if (pred[static_cast<size_t>(id)] && t.frames_since_pose < opt.prior_frames) {
+        request[static_cast<size_t>(id)] = pred[static_cast<size_t>(id)];
+      } else {
+        request[static_cast<size_t>(id)] = std::optional<Pose>();
+      }
+      if (request[static_cast<size_t>(id)])
+        r.objects[static_cast<size_t>(id)].searched =
+            request[static_cast<size_t>(id)]->has_value() ? SearchScope::kPrior : SearchScope::kWholeFrame;
+    }
+    std::vector<EyesDetection> found(static_cast<size_t>(n));
+    std::string error;
+    bool any = false;
+    for (const auto& q : request) any = any || q.has_value();
+    if (any) {
+      ++r.detector_calls;
+      if (!detectObjects(eyes, stamp, request, &found, &error)) return failed(stamp, capture, error);
+      // A prior search that failed for a target the tracker lost: the whole frame now.
+      std::vector<std::optional<std::optional<Pose>>> again(static_cast<size_t>(n));
+      bool retry = false;
+      for (int id = 0; id < n; ++id) {
+        const auto& q = request[static_cast<size_t>(id)];
+        if (q && q->has_value() && !tracked[static_cast<size_t>(id)] && !found[static_cast<size_t>(id)].lMo) {
+          again[static_cast<size_t>(id)] = std::optional<Pose>();
+          r.objects[static_cast<size_t>(id)].searched = SearchScope::kWholeFrame;
+          retry = true;
+        }
+      }
+      if (retry) {
+        ++r.detector_calls;
+        if (!detectObjects(eyes, stamp, again, &found, &error)) return failed(stamp, capture, error);
+      }
+    }
+    // 3. Decide per target.
+    for (int id = 0; id < n; ++id) {
+      Target& t = targets[static_cast<size_t>(id)];
+      TargetState& s = r.objects[static_cast<size_t>(id)];
+      const EyesDetection& d = found[static_cast<size_t>(id)];
+      const auto& tr = tracked[static_cast<size_t>(id)];
+      const detector::ObjectModel& model = det.object(id);
+      const bool detected = d.eyes != detector::EyesUsed::kNone &&
+                            (d.lMo.has_value() || !model.has3d());
+      if (detected) {
+        // Agreement with the previous pose brought to this frame: tracked, or predicted (by the
+        // camera motion, or by the last motion, or unmoved: a sudden stop is no disagreement).
+        bool agree = false;
+        if (d.lMo && tr) {
+          agree = agrees(*d.lMo, *tr);
+        } else if (d.lMo && t.last_cMo && t.frames_since_pose <= opt.prior_frames) {
+          const std::optional<Pose>& p = pred[static_cast<size_t>(id)];
+          const bool camera_motion_known = t.last_capture.bMc && capture.bMc;
+          agree = (p && agrees(*d.lMo, *p)) || (!camera_motion_known && agrees(*d.lMo, *t.last_cMo));
+        }
+        if (agree) {
+          ++t.agree;
+        } else {
+          t.agree = 1;
+          t.confirmed = false;
+          t.unconfirmed_frames = 0;
+        }
+        if (t.agree >= opt.confirm_detections) t.confirmed = true;
+        s.mode = TrackMode::kDetect;
+        s.cMo = d.lMo;
+        s.eyes = d.eyes;
+        s.detection = d.eye[0].found ? d.eye[0] : s.detection;
+        s.quality = TrackQuality();
+        s.quality_right = TrackQuality();
+        t.frames_since_detection = 0;
+        if (t.tracker[0] && d.lMo) startTrackers(&t, eyes, *d.lMo);
+      } else if (tr) {
+        s.mode = TrackMode::kTrack;
+        s.cMo = tr;
+        ++t.frames_since_detection;
+      } else {
+        s.mode = TrackMode::kLost;
+        s.eyes = detector::EyesUsed::kNone;
+        ++t.frames_since_detection;
+      }
+      if (!t.confirmed && s.mode != TrackMode::kLost && ++t.unconfirmed_frames > opt.confirm_max_frames) {
+        // A hypothesis that no detection confirmed in time is dropped.
+        s.mode = TrackMode::kLost;
+        s.cMo.reset();
+        s.lost_reason = "not confirmed";
+        t.stop();
+        t.agree = 0;
+        t.unconfirmed_frames = 0;
+      }
+      if (s.mode == TrackMode::kLost) {
+        s.cMo.reset();
+        s.eyes = detector::EyesUsed::kNone;
+        ++t.frames_since_pose;
+        if (t.frames_since_pose > opt.prior_frames) {
+          t.confirmed = false;
+          t.agree = 0;
+          t.velocity.reset();
+        }
+      } else {
+        if (s.cMo && t.last_cMo && t.frames_since_pose == 0) t.velocity = *s.cMo * t.last_cMo->inverse();
+        else t.velocity.reset();
+        if (s.cMo) {
+          t.last_cMo = s.cMo;
+          t.last_capture = capture;
+        }
+        t.frames_since_pose = 0;
+      }
+      s.confirmed = t.confirmed && s.mode != TrackMode::kLost;
+      s.agreeing_detections = s.mode == TrackMode::kLost ? 0 : t.agree;
+      if (s.mode == TrackMode::kDetect && s.detection.found)
+        s.corners = s.detection.corners;
+      else if (s.cMo && model.has3d())
+        s.corners = projectPattern(model, *s.cMo, eyes[0].camera);
+    }
+    return r;
+  }
+
+  const detector::Detector& det;
+  TargetTrackerOptions opt;
+  TrackerFactory factory;
+  std::vector<Target> targets;
+};
+
+namespace {
+
+std::string sizeProblem(const cv::Mat& image, const Intrinsics& cam, const char* eye) {
+  if (image.empty()) return std::string(eye) + "empty image";
+  if (image.cols == cam.width && image.rows == cam.height) return "";
+  return std::string(eye) + "image is " + std::to_string(image.cols) + "x" +
+         std::to_string(image.rows) + ", the camera calibration is " + std::to_string(cam.width) +
+         "x" + std::to_string(cam.height);
+}
+
+}  // namespace
+
+TargetTracker::TargetTracker(const detector::Detector& detector, const TargetTrackerOptions& options,
+                             TrackerFactory trackers)
+    : p_(std::make_unique<Impl>(detector, options, std::move(trackers))) {}
+TargetTracker::~TargetTracker() = default;
+TargetTracker::TargetTracker(TargetTracker&&) noexcept = default;
+TargetTracker& TargetTracker::operator=(TargetTracker&&) noexcept = default;
+
+bool TargetTracker::tracking() const { return p_->tracking(); }
+const TargetTrackerOptions& TargetTracker::options() const { return p_->opt; }
+
+void TargetTracker::reset() { p_->failed({}, {}, ""); }
+
+TargetFrame TargetTracker::failed(const FrameStamp& stamp, const std::string& error) {
+  return p_->failed(stamp, {}, error);
+}
+
+TargetFrame TargetTracker::process(const robot::MonoFrame& f, const Intrinsics& camera) {
+  const auto t0 = std::chrono::steady_clock::now();
+  try {
+    const std::string bad = sizeProblem(f.image, camera, "");
+    if (!bad.empty()) return p_->failed(f.frameStamp(), f.capture, bad);
+    std::vector<Eye> eyes{{toGray(f.image), camera, Pose()}};
+    TargetFrame r = p_->run(eyes, f.frameStamp(), f.capture, f.truth);
+    r.time_ms = msSince(t0);
+    return r;
+  } catch (const std::exception& e) {  // out of memory
+    return p_->failed(f.frameStamp(), f.capture, std::string("tracking failed: ") + e.what());
+  }
+}
+
+TargetFrame TargetTracker::process(const robot::StereoFrame& f, const StereoRig& rig) {
+  const auto t0 = std::chrono::steady_clock::now();
+  try {
+    std::string bad = f.left.empty() || f.right.empty() ? "empty image" : sizeProblem(f.left, rig.left, "left ");
+    if (bad.empty()) bad = sizeProblem(f.right, rig.right, "right ");
+    if (!bad.empty()) return p_->failed(f.frameStamp(), f.capture, bad);
+    std::vector<Eye> eyes{{toGray(f.left), rig.left, Pose()}, {toGray(f.right), rig.right, rig.lMr}};
+    TargetFrame r = p_->run(eyes, f.frameStamp(), f.capture, f.truth);
+    r.time_ms = msSince(t0);
+    return r;
+  } catch (const std::exception& e) {
+    return p_->failed(f.frameStamp(), f.capture, std::string("tracking failed: ") + e.what());
+  }
+}
+
+}  // namespace refgrasp::servo

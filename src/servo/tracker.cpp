@@ -1,0 +1,419 @@
+#include "servo/tracker.h"
+
+#include <algorithm>
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+#include <stdexcept>
+#include <opencv2/video/tracking.hpp>
+
+#include "core/geometry.h"
+#include "detector/pose.h"
+#include "servo/tracker_mbt.h"
+
+namespace refgrasp::servo {
+
+const char* trackerMethodName(TrackerMethod m) {
+  return m == TrackerMethod::kMbt ? "mbt" : "klt";
+}
+
+void TrackerOptions::check() const {
+  auto need = [](bool ok, const char* field, const char* problem) {
+    if (!ok) throw std::invalid_argument(std::string("TrackerOptions.") + field + ": " + problem);
+  };
+  need(min_features >= 4, "min_features", "must be >= 4");
+  need(std::isfinite(min_feature_fraction) && min_feature_fraction >= 0 && min_feature_fraction <= 1,
+       "min_feature_fraction", "must be in [0, 1]");
+  need(std::isfinite(max_projection_error_px) && max_projection_error_px > 0,
+       "max_projection_error_px", "must be > 0");
+  need(std::isfinite(min_visible_fraction) && min_visible_fraction >= 0 && min_visible_fraction <= 1,
+       "min_visible_fraction", "must be in [0, 1]");
+  need(max_features >= min_features, "max_features", "must be >= min_features");
+  need(std::isfinite(feature_quality) && feature_quality > 0 && feature_quality < 1,
+       "feature_quality", "must be in (0, 1)");
+  need(std::isfinite(feature_min_distance_px) && feature_min_distance_px >= 1,
+       "feature_min_distance_px", "must be >= 1");
+  need(klt_window_px >= 5 && klt_window_px % 2 == 1 && klt_window_px <= 101, "klt_window_px",
+       "must be odd, 5..101");
+  need(klt_pyramid_levels >= 0 && klt_pyramid_levels <= 6, "klt_pyramid_levels", "must be 0..6");
+  need(klt_retry_pyramid_levels >= 0 && klt_retry_pyramid_levels <= 6, "klt_retry_pyramid_levels",
+       "must be 0..6");
+  need(std::isfinite(pattern_border_px) && pattern_border_px >= 0, "pattern_border_px", "must be >= 0");
+  need(std::isfinite(inlier_threshold_px) && inlier_threshold_px > 0, "inlier_threshold_px",
+       "must be > 0");
+  need(std::isfinite(reseed_fraction) && reseed_fraction >= 0 && reseed_fraction <= 1,
+       "reseed_fraction", "must be in [0, 1]");
+  need(pose_iterations >= 1 && pose_iterations <= 100, "pose_iterations", "must be 1..100");
+  need(std::isfinite(align_max_corner_shift_px) && align_max_corner_shift_px > 0,
+       "align_max_corner_shift_px", "must be > 0");
+  need(std::isfinite(align_min_correlation) && align_min_correlation >= -1 && align_min_correlation < 1,
+       "align_min_correlation", "must be in [-1, 1)");
+}
+
+namespace {
+
+/// The pattern polygon on its plane, object frame (metres), from the reference polygon.
+std::vector<Eigen::Vector3d> patternPolygonObject(const detector::ObjectModel& object) {
+  std::vector<Eigen::Vector3d> poly;
+  for (const Eigen::Vector2d& px : object.pattern_polygon_px) {
+    const Eigen::Vector2d und = object.camera ? object.camera->undistortPixel(px) : px;
+    const std::optional<Eigen::Vector3d> X = object.target->backProject(und);
+    if (!X) throw std::invalid_argument(object.name + ": pattern polygon vertex off the pattern plane");
+    poly.push_back(*X);
+  }
+  return poly;
+}
+
+/// Projected polygon (distorted image px); empty when a vertex is behind the camera.
+std::vector<Eigen::Vector2d> projectPolygon(const std::vector<Eigen::Vector3d>& poly_o,
+                                            const Pose& cMo, const Intrinsics& cam) {
+  std::vector<Eigen::Vector2d> px;
+  px.reserve(poly_o.size());
+  for (const Eigen::Vector3d& X : poly_o) {
+    const Eigen::Vector3d Xc = cMo * X;
+    if (!(Xc.z() > 1e-6)) return {};
+    px.push_back(cam.project(Xc));
+  }
+  return px;
+}
+
+double visibleFractionOf(const std::vector<Eigen::Vector3d>& poly_o, const Pose& cMo,
+                         const Intrinsics& cam) {
+  const std::vector<Eigen::Vector2d> px = projectPolygon(poly_o, cMo, cam);
+  if (px.size() < 3) return 0;
+  const double area = std::abs(signedArea(px));
+  if (!(area > 1e-9)) return 0;
+  const std::vector<Eigen::Vector2d> in =
+      clipToBox(px, Eigen::Vector2d(-0.5, -0.5), Eigen::Vector2d(cam.width - 0.5, cam.height - 0.5));
+  return in.size() < 3 ? 0 : std::min(1.0, std::abs(signedArea(in)) / area);
+}
+
+/// Point on the pattern plane (object frame) seen at distorted pixel px with pose cMo.
+std::optional<Eigen::Vector3d> backProjectToPlane(const detector::ObjectModel& object,
+                                                  const Pose& cMo, const Intrinsics& cam,
+                                                  const Eigen::Vector2d& px) {
+  const Eigen::Vector2d xn = cam.undistortToNormalized(px);
+  const Eigen::Vector3d ray_c(xn.x(), xn.y(), 1);
+  // Plane n.X_o = d in the camera frame: n_c = R n, d_c = d + n_c . t.
+  const Eigen::Vector3d n_c = cMo.R * object.plane_normal_o;
+  const double d_c = object.plane_offset_m + n_c.dot(cMo.t);
+  const double den = n_c.dot(ray_c);
+  if (std::abs(den) < 1e-9) return std::nullopt;
+  const double s = d_c / den;
+  if (!(s > 1e-6)) return std::nullopt;
+  return cMo.inverse() * (s * ray_c);
+}
+
+std::string lostLine(const char* what, double value, const char* op, double limit) {
+  char buf[128];
+  std::snprintf(buf, sizeof buf, "%s (%.3g %s %.3g)", what, value, op, limit);
+  return buf;
+}
+
+/// KLT features anchored on the pattern plane + robust pose (TrackerMethod::kKlt).
+class KltPlanarTracker : public FrameTracker {
+ public:
+  KltPlanarTracker(const detector::ObjectModel& object, const TrackerOptions& opt, PoseAligner align)
+      : object_(object), opt_(opt), align_(opt.align_to_reference ? std::move(align) : nullptr),
+        poly_o_(patternPolygonObject(object)) {
+  }
+
+  TrackStep start(const cv::Mat& gray, const Intrinsics& cam, const Pose& cMo) override {
+    try {
+      running_ = false;
+      X_o_.clear();
+      TrackStep s;
+      s.cMo = cMo;
+      s.quality.visible_fraction = visibleFractionOf(poly_o_, cMo, cam);
+      if (!cMo.isFinite() || s.quality.visible_fraction < opt_.min_visible_fraction) {
+        s.lost_reason = lostLine("pattern out of view", s.quality.visible_fraction, "<",
+                                 opt_.min_visible_fraction);
+        return s;
+      }
+      std::vector<cv::Point2f> pts;
+      seed(gray, cam, cMo, &pts, &X_o_);
+      std::vector<long> ids(pts.size());
+      for (size_t i = 0; i < ids.size(); ++i) ids[i] = static_cast<long>(i);
+      next_id_ = static_cast<long>(ids.size());
+      pyramid(gray, &prev_pyr_);
+      pts_ = pts;
+      ids_ = ids;
+      s.quality.features = s.quality.features_started = static_cast<int>(pts.size());
+      started_ = s.quality.features;
+      if (s.quality.features < opt_.min_features) {
+        s.lost_reason = lostLine("too few features", s.quality.features, "<", opt_.min_features);
+        return s;
+      }
+      s.ok = running_ = true;
+      cMo_ = cMo;
+      return s;
+    } catch (const std::exception& e) {
+      running_ = false;
+      TrackStep s;
+      s.lost_reason = std::string("tracker start failed: ") + e.what();
+      return s;
+    }
+  }
+
+  TrackStep track(const cv::Mat& gray, const Intrinsics& cam,
+                  const std::optional<Pose>& predicted) override {
+    TrackStep s;
+    if (!running_) {
+      s.lost_reason = "not started";
+      return s;
+    }
+    try {
+      s = step(gray, cam, predicted && predicted->isFinite() ? *predicted : cMo_);
+    } catch (const std::exception& e) {
+      s = TrackStep();
+      s.lost_reason = std::string("tracking failed: ") + e.what();
+    }
+    running_ = s.ok;
+    if (s.ok) cMo_ = s.cMo;
+    return s;
+  }
+
+ private:
+  /// Features (goodFeaturesToTrack) inside the projected pattern shrunk by the border, at least
+  /// feature_min_distance_px from `keep`; their points on the pattern plane by pose cMo.
+  void seed(const cv::Mat& gray, const Intrinsics& cam, const Pose& cMo,
+            std::vector<cv::Point2f>* pts, std::vector<Eigen::Vector3d>* X,
+            const std::vector<cv::Point2f>& keep = {}, int wanted = -1) const {
+    const std::vector<Eigen::Vector2d> poly = projectPolygon(poly_o_, cMo, cam);
+    if (poly.size() < 3) return;
+    cv::Mat mask = cv::Mat::zeros(gray.size(), CV_8UC1);
+    std::vector<cv::Point> p;
+    for (const auto& v : poly) p.emplace_back(cvRound(v.x()), cvRound(v.y()));
+    cv::fillPoly(mask, std::vector<std::vector<cv::Point>>{p}, cv::Scalar(255));
+    const int border = static_cast<int>(std::ceil(opt_.pattern_border_px));
+    if (border > 0) {
+      cv::erode(mask, mask, cv::getStructuringElement(cv::MORPH_RECT, {2 * border + 1, 2 * border + 1}));
+      // Also keep off the image border (KLT windows there are truncated).
+      cv::rectangle(mask, cv::Rect(0, 0, mask.cols, mask.rows), cv::Scalar(0), border);
+    }
+    const int r = static_cast<int>(std::ceil(opt_.feature_min_distance_px));
+    for (const cv::Point2f& k : keep) cv::circle(mask, k, r, cv::Scalar(0), cv::FILLED);
+    std::vector<cv::Point2f> found;
+    const int n = wanted < 0 ? opt_.max_features : wanted;
+    if (n <= 0 || cv::countNonZero(mask) == 0) return;
+    cv::goodFeaturesToTrack(gray, found, n, opt_.feature_quality, opt_.feature_min_distance_px, mask, 7,
+                            false, 0.04);
+    if (found.empty()) return;
+    cv::cornerSubPix(gray, found, cv::Size(5, 5), cv::Size(-1, -1),
+                     cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 0.03));
+    for (const cv::Point2f& f : found) {
+      const auto Xo = backProjectToPlane(object_, cMo, cam, Eigen::Vector2d(f.x, f.y));
+      if (!Xo) continue;
+      pts->push_back(f);
+      X->push_back(*Xo);
+    }
+  }
+
+  int maxLevels() const { return std::max(opt_.klt_pyramid_levels, opt_.klt_retry_pyramid_levels); }
+
+  void pyramid(const cv::Mat& gray, std::vector<cv::Mat>* pyr) const {
+    cv::buildOpticalFlowPyramid(gray, *pyr, cv::Size(opt_.klt_window_px, opt_.klt_window_px), maxLevels());
+  }
+
+  /// One KLT measurement with `levels` pyramid levels from the predicted positions, then the
+  /// robust pose: features (index into ids_), their positions, and which are inliers.
+  struct Measurement {
+    std::vector<size_t> feature;
+    std::vector<cv::Point2f> pts;
+    std::vector<char> inlier;
+    int inliers = 0;
+    bool pose_ok = false;
+    Pose cMo;
+    std::vector<Eigen::Vector3d> Xi;  ///< inliers' anchors
+    std::vector<Eigen::Vector2d> yi;  ///< and their undistorted positions
+  };
+
+  Measurement measure(const std::vector<cv::Mat>& pyr, const std::vector<cv::Point2f>& guess,
+                      int levels, const Intrinsics& cam, const Pose& predicted) const {
+    Measurement m;
+    std::vector<cv::Point2f> next = guess;
+    std::vector<uchar> status;
+    std::vector<float> err;
+    cv::calcOpticalFlowPyrLK(prev_pyr_, pyr, pts_, next, status, err,
+                             cv::Size(opt_.klt_window_px, opt_.klt_window_px), levels,
+                             cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 0.03),
+                             cv::OPTFLOW_USE_INITIAL_FLOW);
+    std::vector<Eigen::Vector3d> X;
+    std::vector<Eigen::Vector2d> y;
+    for (size_t i = 0; i < status.size(); ++i)
+      if (status[i]) {
+        m.feature.push_back(i);
+        m.pts.push_back(next[i]);
+        X.push_back(X_o_[i]);
+        y.push_back(cam.undistortPixel(Eigen::Vector2d(next[i].x, next[i].y)));
+      }
+    m.inlier.assign(X.size(), 0);
+    if (static_cast<int>(X.size()) < opt_.min_features) return m;
+    // Robust pose from the prediction, then the survivors within the inlier threshold.
+    const Eigen::Matrix3d K = cam.K();
+    detector::PoseResult pr = detector::refinePoseLM(X, y, K, predicted, opt_.pose_iterations, 1.0);
+    if (!pr.ok || !pr.cMo.isFinite()) return m;
+    for (size_t i = 0; i < X.size(); ++i) {
+      const Eigen::Vector2d r = detector::projectPinhole(K, pr.cMo * X[i]) - y[i];
+      if (r.norm() < opt_.inlier_threshold_px) {
+        m.inlier[i] = 1;
+        m.Xi.push_back(X[i]);
+        m.yi.push_back(y[i]);
+      }
+    }
+    m.inliers = static_cast<int>(m.Xi.size());
+    if (m.inliers >= opt_.min_features && m.Xi.size() < X.size()) {
+      const detector::PoseResult p2 = detector::refinePoseLM(m.Xi, m.yi, K, pr.cMo, 5, 1.0);
+      if (p2.ok && p2.cMo.isFinite()) pr = p2;
+    }
+    m.pose_ok = true;
+    m.cMo = pr.cMo;
+    return m;
+  }
+
+  TrackStep step(const cv::Mat& gray, const Intrinsics& cam, const Pose& predicted) {
+    TrackStep s;
+    s.quality.features_started = started_;
+    // Features moved to where the prediction puts them (initial flow).
+    std::vector<cv::Point2f> guess(ids_.size());
+    for (size_t i = 0; i < ids_.size(); ++i) {
+      const Eigen::Vector3d Xc = predicted * X_o_[i];
+      const Eigen::Vector2d px = Xc.z() > 1e-6 ? cam.project(Xc) : Eigen::Vector2d(-1e4, -1e4);
+      guess[i] = cv::Point2f(static_cast<float>(px.x()), static_cast<float>(px.y()));
+    }
+    std::vector<cv::Mat> pyr;
+    pyramid(gray, &pyr);
+    Measurement m = measure(pyr, guess, opt_.klt_pyramid_levels, cam, predicted);
+    // A poor prediction (a sudden change of motion) needs the coarser levels.
+    if (2 * m.inliers < static_cast<int>(ids_.size()) &&
+        opt_.klt_retry_pyramid_levels > opt_.klt_pyramid_levels) {
+      Measurement again = measure(pyr, guess, opt_.klt_retry_pyramid_levels, cam, predicted);
+      if (again.inliers > m.inliers) m = std::move(again);
+    }
+    prev_pyr_ = pyr;
+    if (!m.pose_ok || m.inliers < opt_.min_features) {
+      s.quality.features = m.inliers;
+      s.lost_reason = lostLine("too few features", m.inliers, "<", opt_.min_features);
+      return s;
+    }
+    detector::PoseResult pr;
+    pr.cMo = m.cMo;
+    const Eigen::Matrix3d K = cam.K();
+    const std::vector<Eigen::Vector3d>& Xi = m.Xi;
+    const std::vector<Eigen::Vector2d>& yi = m.yi;
+    // Photometric alignment with the reference: the pose the features give no longer drifts.
+    if (align_) {
+      const detector::PoseAlignment a = align_(gray, cam, pr.cMo);
+      s.quality.correlation = a.correlation;
+      if (a.ok) {
+        pr.cMo = a.cMo;
+        s.quality.aligned = true;
+      }
+    }
+    double sq = 0;
+    for (size_t i = 0; i < Xi.size(); ++i)
+      sq += (detector::projectPinhole(K, pr.cMo * Xi[i]) - yi[i]).squaredNorm();
+    s.cMo = pr.cMo;
+    s.quality.features = static_cast<int>(Xi.size());
+    s.quality.projection_error_px = Xi.empty() ? 0 : std::sqrt(sq / static_cast<double>(Xi.size()));
+    s.quality.visible_fraction = visibleFractionOf(poly_o_, s.cMo, cam);
+
+    // Keep the inliers only; after an alignment, re-anchored on the aligned pose.
+    std::vector<cv::Point2f> kept_pts;
+    std::vector<long> kept_ids;
+    std::vector<Eigen::Vector3d> kept_X;
+    for (size_t i = 0; i < m.feature.size(); ++i) {
+      if (!m.inlier[i]) continue;
+      std::optional<Eigen::Vector3d> Xo = X_o_[m.feature[i]];
+      if (s.quality.aligned)
+        Xo = backProjectToPlane(object_, s.cMo, cam, Eigen::Vector2d(m.pts[i].x, m.pts[i].y));
+      if (!Xo) continue;
+      kept_pts.push_back(m.pts[i]);
+      kept_ids.push_back(ids_[m.feature[i]]);
+      kept_X.push_back(*Xo);
+    }
+
+    if (s.quality.features < opt_.min_features) {
+      s.lost_reason = lostLine("too few features", s.quality.features, "<", opt_.min_features);
+    } else if (s.quality.features < opt_.min_feature_fraction * started_) {
+      s.lost_reason = lostLine("too few features", s.quality.features, "<",
+                               opt_.min_feature_fraction * started_);
+    } else if (s.quality.projection_error_px > opt_.max_projection_error_px) {
+      s.lost_reason = lostLine("projection error px", s.quality.projection_error_px, ">",
+                               opt_.max_projection_error_px);
+    } else if (s.quality.visible_fraction < opt_.min_visible_fraction) {
+      s.lost_reason = lostLine("pattern out of view", s.quality.visible_fraction, "<",
+                               opt_.min_visible_fraction);
+    } else {
+      s.ok = true;
+    }
+    if (!s.ok) return s;
+
+    // Re-seed in the visible pattern when too few features are left.
+    if (static_cast<int>(kept_pts.size()) < opt_.reseed_fraction * opt_.max_features) {
+      std::vector<cv::Point2f> more;
+      std::vector<Eigen::Vector3d> more_X;
+      seed(gray, cam, s.cMo, &more, &more_X, kept_pts,
+           opt_.max_features - static_cast<int>(kept_pts.size()));
+      for (size_t i = 0; i < more.size(); ++i) {
+        kept_pts.push_back(more[i]);
+        kept_ids.push_back(next_id_++);
+        kept_X.push_back(more_X[i]);
+      }
+      started_ = static_cast<int>(kept_pts.size());
+    }
+    pts_ = kept_pts;
+    ids_ = kept_ids;
+    X_o_ = kept_X;
+    return s;
+  }
+
+  const detector::ObjectModel& object_;
+  TrackerOptions opt_;
+  PoseAligner align_;
+  std::vector<Eigen::Vector3d> poly_o_;
+  std::vector<cv::Mat> prev_pyr_;      ///< LK pyramid of the previous frame
+  std::vector<cv::Point2f> pts_;       ///< feature positions in the previous frame
+  std::vector<long> ids_;              ///< KLT ids of the features, in KLT order
+  std::vector<Eigen::Vector3d> X_o_;   ///< their points on the pattern plane, object frame
+  long next_id_ = 0;
+  int started_ = 0;
+  bool running_ = false;
+  Pose cMo_;
+};
+
+}  // namespace
+
+double visibleFraction(const detector::ObjectModel& object, const Pose& cMo, const Intrinsics& camera) {
+  if (!object.has3d()) return 0;
+  return visibleFractionOf(patternPolygonObject(object), cMo, camera);
+}
+
+std::unique_ptr<FrameTracker> makePlanarTracker(const detector::ObjectModel& object,
+                                                const TrackerOptions& options, PoseAligner align) {
+  options.check();
+  if (!object.has3d())
+    throw std::invalid_argument(object.name + ": tracking needs a 3D object (reference_pose)");
+  if (options.method == TrackerMethod::kMbt) return makeMbtTracker(object, options);
+  return std::make_unique<KltPlanarTracker>(object, options, std::move(align));
+}
+
+TrackerFactory planarTrackerFactory(const TrackerOptions& options, const detector::Detector* detector) {
+  options.check();
+  return [options, detector](const detector::ObjectModel& object) {
+    PoseAligner align;
+    if (detector)
+      for (int id = 0; id < detector->objectCount(); ++id)
+        if (&detector->object(id) == &object) {
+          detector::DenseRefineOptions dense = detector->options().dense;
+          dense.max_corner_shift_px = options.align_max_corner_shift_px;
+          dense.min_correlation = options.align_min_correlation;
+          align = [detector, id, dense](const cv::Mat& gray, const Intrinsics& cam, const Pose& cMo) {
+            return detector->alignPose(gray, cam, id, cMo, &dense);
+          };
+          break;
+        }
+    return makePlanarTracker(object, options, std::move(align));
+  };
+}
+
+}  // namespace refgrasp::servo

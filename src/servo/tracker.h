@@ -1,0 +1,133 @@
+#pragma once
+// Frame-to-frame tracking of one planar object after a detection (issue 8, "Tracking").
+//
+// FrameTracker is the seam: the per-frame pipeline (servo/target_tracker.h) starts a tracker on
+// the frame of a detection at the detected pose and asks it for the pose in each next frame.
+// makePlanarTracker() builds the project's trackers on a detector::ObjectModel (its pattern
+// polygon on its plane, in the object frame):
+//
+//   kKlt  KLT features (ViSP vpKltOpencv) inside the projected pattern, each anchored to its
+//         point on the pattern plane (object frame); per frame: features moved from the
+//         predicted pose (initial flow), pose by robust (Huber) Levenberg-Marquardt on the 2D-3D
+//         pairs, features beyond inlier_threshold_px dropped; then, with a PoseAligner (the
+//         detector's Detector::alignPose), the pose is aligned photometrically with the
+//         object's reference image and the features re-anchored on it, so that the pose does
+//         not drift; features are re-seeded in the visible pattern when too few are left.
+//   kMbt  ViSP's vpMbGenericTracker (KLT, optionally + moving edges on the pattern outline) on a
+//         one-face model built from the pattern polygon, initialised with initFromPose.
+//
+// Quality per frame: surviving features and their RMS projection error, and the fraction of the
+// pattern projected inside the image. The tracker reports "lost" when one of them falls past its
+// threshold (TrackerOptions) or the pose is not finite/in front of the camera.
+//
+// Frames and units: cMo = object frame in the camera frame of the image tracked (metres,
+// radians); images 8-bit gray of the camera's size; pixels with the centre of the top-left pixel
+// at (0, 0). Deterministic: the same frames give the same poses.
+#include <functional>
+#include <memory>
+#include <opencv2/core.hpp>
+#include <optional>
+#include <string>
+
+#include "core/camera.h"
+#include "core/pose.h"
+#include "detector/detector.h"
+#include "detector/object.h"
+
+namespace refgrasp::servo {
+
+/// Quality of one tracking step (or of a start).
+struct TrackQuality {
+  int features = 0;                ///< features that survived this step (pose inliers)
+  int features_started = 0;        ///< features at the last (re)seeding
+  double projection_error_px = 0;  ///< RMS reprojection error of the surviving features (px)
+  double visible_fraction = 0;     ///< fraction of the pattern's area projected inside the image
+  bool aligned = false;            ///< the pose was aligned with the reference this step
+  double correlation = 0;          ///< the alignment's ECC correlation coefficient (when tried)
+};
+
+/// The outcome of start() or track().
+struct TrackStep {
+  bool ok = false;           ///< false: the target is lost (or could not be started)
+  Pose cMo;                  ///< ok: object frame in the camera frame of this image (m, rad)
+  TrackQuality quality;
+  std::string lost_reason;   ///< !ok: one line, e.g. "too few features (5 < 12)"
+};
+
+/// Frame-to-frame tracking of one object. Gray CV_8UC1 frames of the camera's size.
+class FrameTracker {
+ public:
+  virtual ~FrameTracker() = default;
+  /// Starts on the frame a detection was made in, at the detected pose. ok = false when it
+  /// cannot track from there (e.g. too few features on the visible pattern). Never throws.
+  virtual TrackStep start(const cv::Mat& gray, const Intrinsics& camera, const Pose& cMo) = 0;
+  /// The pose in the next frame. predicted_cMo: the pose expected in this frame (e.g. the last
+  /// one moved by the camera motion between the captures); empty: the tracker's own
+  /// prediction. ok = false: lost; the tracker stays stopped until the next start(). Never throws.
+  virtual TrackStep track(const cv::Mat& gray, const Intrinsics& camera,
+                          const std::optional<Pose>& predicted_cMo = std::nullopt) = 0;
+};
+
+/// A tracker for an object (3D objects only).
+using TrackerFactory =
+    std::function<std::unique_ptr<FrameTracker>(const detector::ObjectModel& object)>;
+
+enum class TrackerMethod {
+  kKlt,  ///< vpKltOpencv features anchored on the pattern plane + robust pose (default)
+  kMbt,  ///< vpMbGenericTracker on the pattern polygon (KLT, + edges with mbt_edges)
+};
+const char* trackerMethodName(TrackerMethod m);  ///< "klt", "mbt"
+
+struct TrackerOptions {
+  TrackerMethod method = TrackerMethod::kKlt;
+  // Losing the target.
+  int min_features = 12;                ///< lost below this many surviving features
+  double min_feature_fraction = 0.2;    ///< lost when fewer than this x features_started survive
+  double max_projection_error_px = 2.0; ///< lost when the RMS error of the survivors is larger
+  double min_visible_fraction = 0.2;    ///< lost when less of the pattern projects in the image
+  // KLT features.
+  int max_features = 200;               ///< seeded in the projected pattern
+  double feature_quality = 0.01;        ///< goodFeaturesToTrack quality level
+  double feature_min_distance_px = 8;
+  int klt_window_px = 15;               ///< odd, >= 5
+  /// 0..6. Few: the features start at the predicted positions, and at coarse levels a window
+  /// on a small target is dominated by a background that moves differently.
+  int klt_pyramid_levels = 2;
+  /// When fewer than half the features fit the pose, KLT again with this many levels (a sudden
+  /// change of motion the prediction missed); <= klt_pyramid_levels: never.
+  int klt_retry_pyramid_levels = 4;
+  double pattern_border_px = 6;         ///< features this far inside the projected outline only
+  double inlier_threshold_px = 2.5;     ///< features with a larger residual are dropped
+  /// Re-seed features in the visible pattern when fewer than this x max_features are left.
+  double reseed_fraction = 0.5;
+  int pose_iterations = 10;             ///< robust LM iterations per frame
+  bool mbt_edges = false;               ///< kMbt: add moving edges on the pattern outline
+  bool align_to_reference = true;       ///< kKlt: align each pose with the reference (if given)
+  /// The alignment is refused when a pattern corner moves more (corners out of the view move
+  /// far for a small rotation of a partly visible pattern) or the correlation ends lower.
+  double align_max_corner_shift_px = 20;
+  double align_min_correlation = 0.8;
+  /// Throws std::invalid_argument "TrackerOptions.<field>: <problem>".
+  void check() const;
+};
+
+/// Aligns a pose of one object with its reference image (Detector::alignPose bound to it).
+using PoseAligner = std::function<detector::PoseAlignment(const cv::Mat& gray, const Intrinsics& camera,
+                                                          const Pose& cMo)>;
+
+/// The project's tracker for `object` (throws std::invalid_argument for a 2D-only object or bad
+/// options: start-up). align: see TrackerMethod::kKlt (nullptr: KLT alone).
+std::unique_ptr<FrameTracker> makePlanarTracker(const detector::ObjectModel& object,
+                                                const TrackerOptions& options = {},
+                                                PoseAligner align = nullptr);
+/// A factory making makePlanarTracker(object, options, ...) (options checked here, once). With a
+/// detector (which must outlive the trackers), objects registered in it are aligned through
+/// Detector::alignPose.
+TrackerFactory planarTrackerFactory(const TrackerOptions& options = {},
+                                    const detector::Detector* detector = nullptr);
+
+/// Fraction of the pattern polygon's area (object frame, via cMo) that projects inside the image
+/// (0 when any vertex is behind the camera).
+double visibleFraction(const detector::ObjectModel& object, const Pose& cMo, const Intrinsics& camera);
+
+}  // namespace refgrasp::servo
