@@ -22,7 +22,9 @@ void command(Robot& robot, double t) {
     robot.head().setVelocity(0.6 * (t < 1.0 ? 1 : -1), 0.0);
   } else if (t < 5.0) {
     robot.head().setPosition(0.0, 0.35);
-    robot.base().setVelocity(0.4, 0.15);
+    // 2.5 s of arc: half a second more would bring the base body onto the table's corner.
+    if (t < 4.5) robot.base().setVelocity(0.4, 0.15);
+    else robot.base().setVelocity(0, 0);
   } else if (t < 8.0) {
     Twist v;
     v.v = Eigen::Vector3d(0.06, 0.0, 0.08);  // forward and up, in the base frame
@@ -54,7 +56,8 @@ int run(const std::string& enon_path, const std::string& scenario_path, const st
   for (int k = 0; k <= cycles; ++k) {
     const double t = k * dt;
     if (robot->read(t, dt) != ReturnType::kOk) {
-      std::fprintf(stderr, "sim_enon_demo: read failed at t=%.3f s\n", t);
+      std::fprintf(stderr, "sim_enon_demo: read failed at t=%.3f s: %s\n", t,
+                   robot->hardware().lastError().c_str());
       return 3;
     }
     csv << robot->state().csvRow() << '\n';
@@ -70,7 +73,8 @@ int run(const std::string& enon_path, const std::string& scenario_path, const st
     }
     command(*robot, t);
     if (robot->write(t, dt) != ReturnType::kOk) {
-      std::fprintf(stderr, "sim_enon_demo: write failed at t=%.3f s\n", t);
+      std::fprintf(stderr, "sim_enon_demo: write failed at t=%.3f s: %s\n", t,
+                   robot->hardware().lastError().c_str());
       return 3;
     }
   }

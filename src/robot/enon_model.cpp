@@ -50,6 +50,19 @@ double nonNegative(const YamlFile& f, const YAML::Node& node, const std::string&
   return v;
 }
 
+LinkCapsule readLink(const YamlFile& f, const YAML::Node& node, const std::string& field, int dof) {
+  LinkCapsule l;
+  l.from_frame = f.integer(node, field + ".from_frame");
+  l.to_frame = f.integer(node, field + ".to_frame");
+  l.radius_m = positive(f, node, field + ".radius_m");
+  if (l.from_frame < 0 || l.from_frame > dof)
+    f.fail(field + ".from_frame", "expected a DH frame 0.." + std::to_string(dof));
+  if (l.to_frame <= l.from_frame || l.to_frame > dof)
+    f.fail(field + ".to_frame", "expected a DH frame " + std::to_string(l.from_frame + 1) + ".." +
+                                    std::to_string(dof) + " (after from_frame)");
+  return l;
+}
+
 }  // namespace
 
 void EnonModel::check() const {
@@ -64,12 +77,23 @@ void EnonModel::check() const {
   checkLimits(head.tilt, "enon.head.tilt");
   refgrasp::check(head.bMp.isFinite() && head.tMc.isFinite(), "enon.head", "poses must be finite");
   refgrasp::check(head.frame_rate_hz > 0, "enon.head", "frame_rate_hz must be positive");
+  refgrasp::check(base.body_radius_m > 0 && base.body_height_m > 0, "enon.base",
+                  "body_radius_m and body_height_m must be positive");
   refgrasp::check(!arm.joints.empty(), "enon.arm", "needs at least one joint");
+  for (const LinkCapsule* l : {&arm.upper_arm, &arm.forearm})
+    refgrasp::check(l->from_frame >= 0 && l->from_frame < l->to_frame && l->to_frame <= arm.dof() &&
+                        l->radius_m > 0,
+                    "enon.arm", "link capsules need 0 <= from_frame < to_frame <= dof and radius_m > 0");
   for (const auto& j : arm.joints) checkLimits(j.limits, "enon.arm." + j.name);
   refgrasp::check(arm.dls_damping >= 0, "enon.arm", "dls_damping must not be negative");
   refgrasp::check(gripper.close_time_s >= 0 && gripper.open_time_s >= 0 &&
                       gripper.grasp_tolerance_m > 0 && gripper.grasp_tolerance_rad > 0,
                   "enon.gripper", "times must be >= 0 and tolerances positive");
+  refgrasp::check(gripper.open_width_m > 0 && gripper.finger_radius_m > 0 &&
+                      gripper.palm_radius_m > 0 && gripper.palm_offset_m > 0 &&
+                      gripper.finger_length_m > gripper.palm_offset_m,
+                  "enon.gripper",
+                  "sizes must be positive and finger_length_m must exceed palm_offset_m");
 }
 
 EnonModel loadEnonModel(const std::string& path) {
@@ -84,6 +108,8 @@ EnonModel loadEnonModel(const std::string& path) {
   m.base.max_linear_speed_mps = positive(f, r, "base.max_linear_speed_mps");
   m.base.max_angular_speed_radps = positive(f, r, "base.max_angular_speed_radps");
   m.base.max_wheel_speed_mps = positive(f, r, "base.max_wheel_speed_mps");
+  m.base.body_radius_m = positive(f, r, "base.body.radius_m");
+  m.base.body_height_m = positive(f, r, "base.body.height_m");
 
   m.head.bMp = f.pose(r, "head.mount");
   m.head.tilt_height_m = f.number(r, "head.tilt_height_m");
@@ -126,12 +152,22 @@ EnonModel loadEnonModel(const std::string& path) {
       if (other.name == j.name) f.fail(prefix + ".name", "duplicate joint name '" + j.name + "'");
     m.arm.joints.push_back(j);
   }
+  m.arm.upper_arm = readLink(f, r, "arm.upper_arm", m.arm.dof());
+  m.arm.forearm = readLink(f, r, "arm.forearm", m.arm.dof());
 
   m.gripper.close_time_s = nonNegative(f, r, "gripper.close_time_s");
   m.gripper.open_time_s = nonNegative(f, r, "gripper.open_time_s");
   m.gripper.grasp_tolerance_m = positive(f, r, "gripper.grasp_tolerance_m");
   m.gripper.grasp_tolerance_rad = positive(f, r, "gripper.grasp_tolerance_rad");
   m.gripper.max_payload_kg = positive(f, r, "gripper.max_payload_kg");
+  m.gripper.open_width_m = positive(f, r, "gripper.open_width_m");
+  m.gripper.finger_length_m = positive(f, r, "gripper.finger_length_m");
+  m.gripper.finger_radius_m = positive(f, r, "gripper.finger_radius_m");
+  m.gripper.palm_offset_m = positive(f, r, "gripper.palm_offset_m");
+  m.gripper.palm_radius_m = positive(f, r, "gripper.palm_radius_m");
+  if (m.gripper.finger_length_m <= m.gripper.palm_offset_m)
+    f.fail("gripper.finger_length_m",
+           "must exceed palm_offset_m (the fingertips reach past the gripper frame e)");
   return m;
 }
 

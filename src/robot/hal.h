@@ -75,6 +75,9 @@ class RobotHardware {
   /// (the watchdog period): a device never keeps moving on a stale command.
   virtual ReturnType write(Seconds time, Seconds period, const RobotCommand& cmd,
                            Seconds valid_for_s) = 0;
+  /// One line saying why the last read() or write() returned kError ("" when the backend does not
+  /// say), e.g. the simulated enon's "collision at t=3.21 s: forearm with table (4 mm)".
+  virtual std::string lastError() const { return {}; }
 };
 
 /// Frame of an arm velocity command (vpRobot::setVelocity idiom). Reference point: e's origin.

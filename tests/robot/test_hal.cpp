@@ -379,3 +379,47 @@ TEST(EnonYaml, BadFilesGiveOneLineErrorsNamingFileAndField) {
                 .find("arm.joints"),
             std::string::npos);
 }
+
+TEST(EnonYaml, BadCollisionGeometryGivesOneLineErrors) {
+  const std::string ok = shippedEnonText();
+  const EnonModel m = testing_util::enonModel();
+  EXPECT_EQ(m.base.body_radius_m, 0.25);
+  EXPECT_EQ(m.arm.forearm.to_frame, 5);
+  EXPECT_GT(m.gripper.open_width_m, 0.22);  // the widest evaluation box, with margin
+  EXPECT_NE(loadError("g1.yaml", replaced(ok, "body: {radius_m: 0.25, height_m: 1.30}", ""))
+                .find("base.body.radius_m: missing"),
+            std::string::npos);
+  EXPECT_NE(loadError("g2.yaml", replaced(ok, "body: {radius_m: 0.25,", "body: {radius_m: -0.25,"))
+                .find("base.body.radius_m: must be positive"),
+            std::string::npos);
+  EXPECT_NE(loadError("g3.yaml", replaced(ok, "forearm: {from_frame: 3, to_frame: 5,", "forearm: {from_frame: 3, to_frame: 6,"))
+                .find("arm.forearm.to_frame: expected a DH frame 4..5 (after from_frame)"),
+            std::string::npos);
+  EXPECT_NE(loadError("g4.yaml", replaced(ok, "upper_arm: {from_frame: 0, to_frame: 3,", "upper_arm: {from_frame: 3, to_frame: 3,"))
+                .find("arm.upper_arm.to_frame: expected a DH frame 4..5"),
+            std::string::npos);
+  EXPECT_NE(loadError("g5.yaml", replaced(ok, "upper_arm: {from_frame: 0,", "upper_arm: {from_frame: 0.5,"))
+                .find("arm.upper_arm.from_frame: expected an integer"),
+            std::string::npos);
+  EXPECT_NE(loadError("g6.yaml", replaced(ok, "radius_m: 0.03}", "radius_m: 0}"))
+                .find("arm.forearm.radius_m: must be positive"),
+            std::string::npos);
+  EXPECT_NE(loadError("g7.yaml", replaced(ok, "open_width_m: 0.28", "open_width_m: wide"))
+                .find("gripper.open_width_m: expected a number"),
+            std::string::npos);
+  EXPECT_NE(loadError("g8.yaml", replaced(ok, "finger_radius_m: 0.012", "finger_radius_m: .inf"))
+                .find("gripper.finger_radius_m: must be finite"),
+            std::string::npos);
+  EXPECT_NE(loadError("g9.yaml", replaced(ok, "finger_length_m: 0.115", "finger_length_m: 0.08"))
+                .find("gripper.finger_length_m: must exceed palm_offset_m"),
+            std::string::npos);
+  EXPECT_NE(loadError("g10.yaml", replaced(ok, "  palm_radius_m: 0.02", "")).find("gripper.palm_radius_m: missing"),
+            std::string::npos);
+  // Models built in code are checked too.
+  EnonModel bad = m;
+  bad.gripper.palm_offset_m = bad.gripper.finger_length_m;
+  EXPECT_THROW(bad.check(), std::invalid_argument);
+  bad = m;
+  bad.arm.upper_arm.to_frame = 9;
+  EXPECT_THROW(bad.check(), std::invalid_argument);
+}

@@ -45,7 +45,7 @@ TEST(Kinematics, EnonArmHandComputedPoses) {
   const EnonModel m = testing_util::enonModel();
   const ArmKinematics kin(m.arm);
   const Eigen::Vector3d shoulder(0, -0.20, 1.00);
-  const double reach = 0.25 + 0.22 + 0.08;
+  const double reach = 0.25 + 0.20 + 0.10;
   Eigen::VectorXd q = Eigen::VectorXd::Zero(5);
   // Hanging straight down, approach axis z_e pointing down.
   Pose e = kin.forward(q);

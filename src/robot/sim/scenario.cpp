@@ -34,6 +34,9 @@ namespace {
 
 namespace fs = std::filesystem;
 
+constexpr double kPlaneThickness = 0.001;  // solid of a plane object, behind its face
+constexpr double kSlab = 0.5;              // thickness of the floor's and the walls' solids
+
 // Reads one scenario; every accessor throws ConfigError naming the file and the dotted field.
 class Reader {
  public:
@@ -132,7 +135,7 @@ std::vector<TexturedPlane> objectBox(const Eigen::Vector3d& size, const std::arr
 
 SimObject readObject(Reader& r, const YAML::Node& node, const std::string& where) {
   r.onlyKeys(node, where, {"name", "definition", "target", "shape", "size_m", "texture", "faces",
-                           "side_texture", "pose", "grasp_frame"});
+                           "side_texture", "pose", "grasp_frame", "mass_kg"});
   SimObject o;
   o.name = r.string(node, where, "name");
   o.is_target = r.boolean(node, where, "target", false);
@@ -147,10 +150,14 @@ SimObject readObject(Reader& r, const YAML::Node& node, const std::string& where
   }
   o.wMo = r.pose(node, where, "pose");
   o.oMg = node["grasp_frame"] ? r.pose(node, where, "grasp_frame") : Pose();
+  o.mass_kg = r.number(node, where, "mass_kg", kDefaultObjectMassKg);
+  if (o.mass_kg <= 0) r.file().fail(Reader::join(where, "mass_kg"), "must be positive");
   const std::string shape = r.string(node, where, "shape");
   if (shape == "plane") {
     const Eigen::Vector3d size = r.positiveSize(node, where, "size_m", 2);
     o.faces.push_back({r.texture(node, where, "texture"), size.x(), size.y(), Pose()});
+    o.solids.push_back({Pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0, 0, kPlaneThickness / 2)),
+                        Eigen::Vector3d(size.x() / 2, size.y() / 2, kPlaneThickness / 2)});
   } else if (shape == "box") {
     const Eigen::Vector3d size = r.positiveSize(node, where, "size_m", 3);
     const cv::Mat side = r.texture(node, where, "side_texture");
@@ -164,6 +171,7 @@ SimObject readObject(Reader& r, const YAML::Node& node, const std::string& where
         if (faces[names[i]]) tex[i] = r.texture(faces, fw, names[i]);
     }
     o.faces = objectBox(size, tex);
+    o.solids.push_back({Pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0, 0, size.z() / 2)), size / 2});
   } else {
     r.file().fail(Reader::join(where, "shape"), "expected 'plane' or 'box', got '" + shape + "'");
   }
@@ -176,6 +184,7 @@ SimObject readTable(Reader& r, const YAML::Node& node) {
   r.onlyKeys(node, w, {"size_m", "pose", "texture", "side_texture"});
   SimObject t;
   t.name = "table";
+  t.kind = ObjectKind::kTable;
   const Eigen::Vector3d size = r.positiveSize(node, w, "size_m", 3);
   const Pose floorMt = r.pose(node, w, "pose");  // pose of the table's footprint centre on the floor
   t.wMo = floorMt * Pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0, 0, size.z()));
@@ -184,6 +193,7 @@ SimObject readTable(Reader& r, const YAML::Node& node) {
   const Eigen::Vector3d down = -Eigen::Vector3d::UnitZ(), minusY = -Eigen::Vector3d::UnitY();
   t.faces = boxFaces(size, Eigen::Vector3d(0, 0, -size.z() / 2), {side, side, side, side, side, top},
                      {down, down, down, down, minusY, minusY});
+  t.solids.push_back({Pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0, 0, -size.z() / 2)), size / 2});
   return t;
 }
 
@@ -199,10 +209,13 @@ void readRoom(Reader& r, const YAML::Node& node, World* world) {
   }
   SimObject floor;
   floor.name = "floor";
+  floor.kind = ObjectKind::kFloor;
   floor.wMo = Pose(Eigen::Matrix3d::Identity(), centre);
   // Seen from above: face z down, rows along -y, columns along +x.
   floor.faces = {{r.texture(node, w, "floor_texture"), size.x(), size.y(),
                   Pose(Eigen::Vector3d(1, -1, -1).asDiagonal().toDenseMatrix(), Eigen::Vector3d::Zero())}};
+  floor.solids.push_back({Pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0, 0, -kSlab / 2)),
+                          Eigen::Vector3d(size.x() / 2, size.y() / 2, kSlab / 2)});
   world->objects.push_back(floor);
   if (!node["wall_texture"]) return;
   const double h = r.number(node, w, "wall_height_m", 2.5);
@@ -210,6 +223,7 @@ void readRoom(Reader& r, const YAML::Node& node, World* world) {
   const cv::Mat wtex = r.texture(node, w, "wall_texture");
   SimObject walls;
   walls.name = "walls";
+  walls.kind = ObjectKind::kWalls;
   walls.wMo = floor.wMo;
   // The inside of a box: its faces seen from within are the outside faces of a box turned inside out,
   // so build the outward faces and flip each about its row axis.
@@ -221,6 +235,14 @@ void readRoom(Reader& r, const YAML::Node& node, World* world) {
     box[static_cast<size_t>(i)].cMp.R = box[static_cast<size_t>(i)].cMp.R * flip;
     walls.faces.push_back(box[static_cast<size_t>(i)]);
   }
+  // Solid slabs behind the walls (they overlap at the corners).
+  for (int axis = 0; axis < 2; ++axis)
+    for (const double side : {-1.0, 1.0}) {
+      Eigen::Vector3d centre(0, 0, h / 2), half(size.x() / 2 + kSlab, size.y() / 2 + kSlab, h / 2);
+      centre[axis] = side * (size[axis] / 2 + kSlab / 2);
+      half[axis] = kSlab / 2;
+      walls.solids.push_back({Pose(Eigen::Matrix3d::Identity(), centre), half});
+    }
   world->objects.push_back(walls);
 }
 

@@ -18,12 +18,32 @@
 
 namespace refgrasp::sim {
 
+/// A solid part of an object, for collisions and grasping: a box (centre and axes oMs in the
+/// object frame, half extents).
+struct Solid {
+  Pose oMs;
+  Eigen::Vector3d half_m = Eigen::Vector3d::Zero();
+};
+
+/// Mass of a scenario object without `mass_kg` (a filled cereal box is about 0.4 kg).
+constexpr double kDefaultObjectMassKg = 0.3;
+
+/// What a world object is: a scenario object (an item: grasped, pushed into), or a fixture of the
+/// room that is never grasped: the table, the floor (the base stands on it), the walls.
+enum class ObjectKind { kItem, kTable, kFloor, kWalls };
+
 struct SimObject {
   std::string name;
+  ObjectKind kind = ObjectKind::kItem;
   std::string definition;  ///< resolved path of the detector object YAML ("" for distractors)
   Pose wMo;                ///< object frame in the world
   Pose oMg;                ///< grasp frame in the object frame
   std::vector<TexturedPlane> faces;  ///< the cMp field of each face holds oMp (face in object frame)
+  /// Solids the robot collides with and grips: a box object's box, a plane 1 mm thick behind its
+  /// face, the table's block, the floor (a slab below z = 0) and the walls (slabs behind them).
+  /// None: the object is never touched (it can still be grasped, with zero width).
+  std::vector<Solid> solids;
+  double mass_kg = kDefaultObjectMassKg;
   bool is_target = false;
 };
 

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "core/error.h"
 
@@ -16,6 +17,14 @@ namespace {
 
 // Event times closer than this are the same instant (avoids zero-length integration steps).
 constexpr double kTimeEps = 1e-12;
+// Collision checks along an integration step: no point of the robot moves more than this between two.
+constexpr double kMaxMotionPerCheck = 0.002;
+// A held object heavier than the payload slips once the hand has moved its grasp frame this far.
+constexpr double kSlipDistance = 0.005;
+constexpr double kSlipAngle = 0.05;
+
+const char* const kCapsuleNames[] = {"upper_arm", "forearm", "palm", "finger_x+", "finger_x-"};
+constexpr int kFirstFinger = 3;
 
 uint64_t splitmix64(uint64_t x) {
   x += 0x9E3779B97F4A7C15ull;
@@ -58,7 +67,8 @@ class SimStereoCamera : public robot::StereoSource {
     lVl.w = aMb.rotationVector() / (2 * half);
     World world = sim_->world_;
     for (size_t i = 0; i < world.objects.size(); ++i) world.objects[i].wMo = now.wMo[i];
-    sim_->last_frame_ = camera_.render(world, now.wMl, lVl, t);
+    sim_->last_frame_ = sim_->render_images_ ? camera_.render(world, now.wMl, lVl, t)
+                                             : camera_.poses(world, now.wMl, t);
     robot::StereoFrame out;
     out.left = sim_->last_frame_->left;
     out.right = sim_->last_frame_->right;
@@ -109,6 +119,13 @@ SimEnon::SimEnon(const robot::EnonModel& model, const Scenario& scenario)
   }
   qdot_ = Eigen::VectorXd::Zero(kin_.dof());
   active_cmd_ = robot::RobotCommand::zero(kin_.dof());
+  const robot::GripperModel& g = model_.gripper;
+  gap_from_ = gap_to_ = g.open_width_m;
+  // Any point beyond a joint is within the sum of the link lengths, the tool and the hand of its axis.
+  for (const auto& j : model_.arm.joints) arm_lever_m_ += std::abs(j.a_m) + std::abs(j.d_m);
+  arm_lever_m_ += model_.arm.nMe.t.norm() + g.palm_offset_m + g.finger_length_m + g.open_width_m / 2 +
+                  2 * g.finger_radius_m + g.palm_radius_m +
+                  std::max(model_.arm.upper_arm.radius_m, model_.arm.forearm.radius_m);
   pushSnapshot();
 }
 
@@ -120,8 +137,12 @@ ReturnType SimEnon::configure() {
 }
 
 ReturnType SimEnon::activate() {
-  if (!configured_) return ReturnType::kError;
+  if (!configured_) {
+    last_error_ = "sim: activate() before configure()";
+    return ReturnType::kError;
+  }
   active_ = true;
+  checkNow();
   return ReturnType::kOk;
 }
 
@@ -154,6 +175,8 @@ void SimEnon::setJointPositions(const Eigen::VectorXd& q) {
     const auto& l = model_.arm.joints[static_cast<size_t>(i)].limits;
     q_[i] = std::clamp(q[i], l.min_rad, l.max_rad);
   }
+  if (held_ >= 0) world_.objects[static_cast<size_t>(held_)].wMo = wMe() * eMo_held_;
+  checkNow();
   pushSnapshot();
 }
 
@@ -164,8 +187,19 @@ bool SimEnon::stuck(const std::string& joint) const {
 
 ReturnType SimEnon::write(Seconds time, Seconds /*period*/, const robot::RobotCommand& cmd,
                           Seconds valid_for_s) {
-  if (!active_) return ReturnType::kError;
-  if (!cmd.isFinite() || cmd.arm_qdot_radps.size() != kin_.dof()) return ReturnType::kError;
+  if (collided()) {
+    last_error_ = collisions_.front().message();
+    return ReturnType::kError;
+  }
+  if (!active_) {
+    last_error_ = "sim: write() while not active";
+    return ReturnType::kError;
+  }
+  if (!cmd.isFinite() || cmd.arm_qdot_radps.size() != kin_.dof()) {
+    last_error_ = "sim: command not finite or not one rate per arm joint (" +
+                  std::to_string(cmd.arm_qdot_radps.size()) + " for " + std::to_string(kin_.dof()) + ")";
+    return ReturnType::kError;
+  }
   const Seconds due = time + scenario_.faults.command_latency_s;
   // Commands reach the controller in order; a later write never overtakes an earlier one.
   const Seconds last_due = queue_.empty() ? -1e300 : queue_.back().due;
@@ -175,6 +209,7 @@ ReturnType SimEnon::write(Seconds time, Seconds /*period*/, const robot::RobotCo
 }
 
 void SimEnon::applyDue(Seconds now) {
+  if (collided()) return;  // emergency stop: nothing is taken any more
   while (!queue_.empty() && queue_.front().due <= now + kTimeEps) {
     const Queued q = queue_.front();
     queue_.pop_front();
@@ -185,11 +220,23 @@ void SimEnon::applyDue(Seconds now) {
         (gripper_ == GripperPhase::kOpen || gripper_ == GripperPhase::kOpening)) {
       gripper_ = GripperPhase::kClosing;
       gripper_done_ = start + model_.gripper.close_time_s;
+      moveFingers(start, 0.0, model_.gripper.close_time_s);
+      // The item the fingers close on: the grasp frame nearest e, within the opening.
+      const Pose e = wMe();
+      double best = model_.gripper.open_width_m;
+      finger_exempt_ = -1;
+      for (size_t i = 0; i < world_.objects.size(); ++i) {
+        const SimObject& o = world_.objects[i];
+        if (o.kind != ObjectKind::kItem) continue;
+        const double d = translationError(e, o.wMo * o.oMg);
+        if (d < best) best = d, finger_exempt_ = static_cast<int>(i);
+      }
     } else if (q.cmd.gripper == GripperCommand::kOpen && gripper_ != GripperPhase::kOpen &&
                gripper_ != GripperPhase::kOpening) {
       held_ = -1;  // released where it is
       gripper_ = GripperPhase::kOpening;
       gripper_done_ = start + model_.gripper.open_time_s;
+      moveFingers(start, model_.gripper.open_width_m, model_.gripper.open_time_s);
     }
   }
   if (now >= active_until_ - kTimeEps) {
@@ -202,34 +249,239 @@ void SimEnon::applyDue(Seconds now) {
 }
 
 void SimEnon::finishGripper(Seconds now) {
-  if (now < gripper_done_ - kTimeEps) return;
-  if (gripper_ == GripperPhase::kOpening) gripper_ = GripperPhase::kOpen;
+  if (collided() || now < gripper_done_ - kTimeEps) return;
+  if (gripper_ == GripperPhase::kOpening) {
+    gripper_ = GripperPhase::kOpen;
+    finger_exempt_ = -1;
+  }
   if (gripper_ != GripperPhase::kClosing) return;
-  // Closing finished: hold the nearest object whose grasp frame is within tolerance.
+  // Closing finished: hold the nearest item whose grasp frame is within tolerance and that fits
+  // between the fingers.
   const Pose e = wMe();
+  const Eigen::Vector3d x_e = e.R.col(0);
   int best = -1;
   double best_dist = 0;
   for (size_t i = 0; i < world_.objects.size(); ++i) {
-    const Pose g = world_.objects[i].wMo * world_.objects[i].oMg;
+    const SimObject& o = world_.objects[i];
+    if (o.kind != ObjectKind::kItem) continue;
+    const Pose g = o.wMo * o.oMg;
     const double d = translationError(e, g);
     if (d <= model_.gripper.grasp_tolerance_m &&
         rotationError(e, g) <= model_.gripper.grasp_tolerance_rad &&
-        (best < 0 || d < best_dist)) {
+        widthAlong(o, x_e) <= model_.gripper.open_width_m && (best < 0 || d < best_dist)) {
       best = static_cast<int>(i);
       best_dist = d;
     }
   }
   held_ = best;
   if (best >= 0) {
-    eMo_held_ = e.inverse() * world_.objects[static_cast<size_t>(best)].wMo;
+    const SimObject& o = world_.objects[static_cast<size_t>(best)];
+    eMo_held_ = e.inverse() * o.wMo;
+    wMo_grasped_ = o.wMo;
+    wMg_grasped_ = o.wMo * o.oMg;
+    finger_exempt_ = best;
+    moveFingers(now, widthAlong(o, x_e), 0);  // the fingers stopped on its sides
     gripper_ = GripperPhase::kHolding;
   } else {
     gripper_ = GripperPhase::kClosedEmpty;
   }
 }
 
-void SimEnon::integrate(Seconds dt) {
-  if (dt <= 0) return;
+double SimEnon::widthAlong(const SimObject& o, const Eigen::Vector3d& u) const {
+  if (o.solids.empty()) return 0;
+  double lo = 1e300, hi = -1e300;
+  for (const Solid& sd : o.solids) {
+    const OrientedBox box{o.wMo * sd.oMs, sd.half_m};
+    const double c = u.dot(box.wMb.t), h = extentAlong(box, u) / 2;
+    lo = std::min(lo, c - h);
+    hi = std::max(hi, c + h);
+  }
+  return hi - lo;
+}
+
+void SimEnon::slipIfTooHeavy() {
+  if (held_ < 0) return;
+  SimObject& o = world_.objects[static_cast<size_t>(held_)];
+  if (o.mass_kg <= model_.gripper.max_payload_kg) return;
+  const Pose g = o.wMo * o.oMg;
+  if (translationError(g, wMg_grasped_) <= kSlipDistance && rotationError(g, wMg_grasped_) <= kSlipAngle)
+    return;
+  // Too heavy: it drops back to where it was grasped and the fingers close on nothing. They stay
+  // exempt against it until the gripper is open again.
+  o.wMo = wMo_grasped_;
+  held_ = -1;
+  gripper_ = GripperPhase::kClosedEmpty;
+  moveFingers(time_, 0.0, 0);
+}
+
+double SimEnon::fingerGapAt(Seconds t) const {
+  if (t >= gap_t1_) return gap_to_;
+  if (t <= gap_t0_) return gap_from_;
+  return gap_from_ + (gap_to_ - gap_from_) * (t - gap_t0_) / (gap_t1_ - gap_t0_);
+}
+
+void SimEnon::moveFingers(Seconds start, double to_gap, Seconds duration) {
+  gap_from_ = fingerGapAt(start);
+  gap_to_ = to_gap;
+  gap_t0_ = start;
+  gap_t1_ = start + duration;
+}
+
+// ---- collisions --------------------------------------------------------------------------------
+
+std::string Collision::message() const {
+  const double mm = depth_m * 1000;
+  char buf[256];
+  std::snprintf(buf, sizeof(buf), "collision at t=%.2f s: %s with %s (%.*f mm)", time, link.c_str(),
+                object.c_str(), mm >= 10 ? 0 : mm >= 1 ? 1 : 2, mm);
+  return buf;
+}
+
+SimEnon::Kinematic SimEnon::kinematicAfter(Seconds s) const {
+  const robot::RobotCommand& c = active_cmd_;
+  double v = c.base_v_mps, w = c.base_w_radps;
+  robot::clipBaseVelocity(model_.base, &v, &w);
+  Kinematic k{robot::integrateUnicycle(base_true_, v, w, s), q_, fingerGapAt(time_ + s)};
+  for (int i = 0; i < kin_.dof(); ++i) {
+    const auto& j = model_.arm.joints[static_cast<size_t>(i)];
+    if (!stuck("arm." + j.name)) k.q[i] = robot::integrateJoint(j.limits, q_[i], c.arm_qdot_radps[i], s);
+  }
+  return k;
+}
+
+double SimEnon::motionBound(Seconds s) const {
+  const robot::RobotCommand& c = active_cmd_;
+  double v = c.base_v_mps, w = c.base_w_radps;
+  robot::clipBaseVelocity(model_.base, &v, &w);
+  const double reach = std::max(model_.base.body_radius_m, model_.arm.bM0.t.head<2>().norm() + arm_lever_m_);
+  double speed = std::abs(v) + std::abs(w) * reach;
+  for (int i = 0; i < kin_.dof(); ++i)
+    speed += std::min(std::abs(c.arm_qdot_radps[i]),
+                      model_.arm.joints[static_cast<size_t>(i)].limits.max_speed_radps) * arm_lever_m_;
+  double motion = speed * s;
+  // Fingers: each moves half the change of the gap.
+  const Seconds t0 = std::max(time_, gap_t0_), t1 = std::min(time_ + s, gap_t1_);
+  if (t1 > t0) motion += 0.5 * std::abs(fingerGapAt(t1) - fingerGapAt(t0));
+  return motion;
+}
+
+RobotShapes SimEnon::shapesOf(const Kinematic& k) const {
+  const Pose wMb = k.base.toPose();
+  const std::vector<Pose> f = kin_.frames(k.q);
+  const Pose e = wMb * f.back();
+  const robot::GripperModel& g = model_.gripper;
+  RobotShapes out;
+  const auto link = [&](const robot::LinkCapsule& l) {
+    return Capsule{wMb * f[static_cast<size_t>(l.from_frame)].t, wMb * f[static_cast<size_t>(l.to_frame)].t,
+                   l.radius_m};
+  };
+  const double x = k.gap / 2 + g.finger_radius_m, back = -g.palm_offset_m,
+               tip = g.finger_length_m - g.palm_offset_m;
+  out.capsules = {
+      {kCapsuleNames[0], link(model_.arm.upper_arm)},
+      {kCapsuleNames[1], link(model_.arm.forearm)},
+      {kCapsuleNames[2], {e * Eigen::Vector3d(-x, 0, back), e * Eigen::Vector3d(x, 0, back), g.palm_radius_m}},
+      {kCapsuleNames[3], {e * Eigen::Vector3d(x, 0, back), e * Eigen::Vector3d(x, 0, tip), g.finger_radius_m}},
+      {kCapsuleNames[4], {e * Eigen::Vector3d(-x, 0, back), e * Eigen::Vector3d(-x, 0, tip), g.finger_radius_m}},
+  };
+  out.base = {Eigen::Vector2d(k.base.x_m, k.base.y_m), 0.0, model_.base.body_height_m,
+              model_.base.body_radius_m};
+  return out;
+}
+
+RobotShapes SimEnon::shapes() const { return shapesOf({base_true_, q_, fingerGapAt(time_)}); }
+
+std::vector<Collision> SimEnon::contacts(const Kinematic& k, Seconds t) const {
+  const RobotShapes sh = shapesOf(k);
+  std::vector<Collision> found;
+  const auto add = [&](const std::string& link, const SimObject& o, double d) {
+    for (Collision& c : found)
+      if (c.link == link && c.object == o.name) {
+        c.depth_m = std::max(c.depth_m, -d);
+        return;
+      }
+    found.push_back({t, link, o.name, -d});
+  };
+  for (size_t i = 0; i < world_.objects.size(); ++i) {
+    const SimObject& o = world_.objects[i];
+    if (static_cast<int>(i) == held_) continue;
+    for (const Solid& sd : o.solids) {
+      const OrientedBox box{o.wMo * sd.oMs, sd.half_m};
+      for (size_t c = 0; c < sh.capsules.size(); ++c) {
+        if (static_cast<int>(c) >= kFirstFinger && static_cast<int>(i) == finger_exempt_) continue;
+        const Capsule& cap = sh.capsules[c].second;
+        // Broad phase: the capsule's bounding sphere.
+        const double bound = 0.5 * (cap.b - cap.a).norm() + cap.radius_m;
+        if (signedDistance(box, Eigen::Vector3d(0.5 * (cap.a + cap.b))) > bound) continue;
+        const double d = signedDistance(box, cap);
+        if (d < 0) add(sh.capsules[c].first, o, d);
+      }
+      if (o.kind != ObjectKind::kFloor) {
+        const double d = signedDistance(box, sh.base);
+        if (d < 0) add("base", o, d);
+      }
+    }
+  }
+  std::sort(found.begin(), found.end(),
+            [](const Collision& a, const Collision& b) { return a.depth_m > b.depth_m; });
+  return found;
+}
+
+void SimEnon::checkNow() {
+  if (collided()) return;
+  latch(contacts({base_true_, q_, fingerGapAt(time_)}, time_));
+}
+
+void SimEnon::latch(std::vector<Collision> found) {
+  if (found.empty() || collided()) return;
+  collisions_ = std::move(found);
+  last_error_ = collisions_.front().message();
+  // Emergency stop: every actuator, now and for good.
+  queue_.clear();
+  active_cmd_ = robot::RobotCommand::zero(kin_.dof());
+  active_until_ = time_;
+  v_ = w_ = pan_rate_ = tilt_rate_ = 0;
+  qdot_.setZero();
+}
+
+std::string SimEnon::lastError() const { return last_error_; }
+
+int SimEnon::targetObject() const {
+  for (size_t i = 0; i < world_.objects.size(); ++i)
+    if (world_.objects[i].is_target) return static_cast<int>(i);
+  return -1;
+}
+
+std::optional<GraspError> SimEnon::graspError(int object) const {
+  if (object < 0 || object >= static_cast<int>(world_.objects.size())) return std::nullopt;
+  const SimObject& o = world_.objects[static_cast<size_t>(object)];
+  const Pose e = wMe(), g = o.wMo * o.oMg;
+  return GraspError{translationError(e, g), rotationError(e, g), e.inverse() * g};
+}
+
+Eigen::VectorXd SimEnon::jointLimitMargins() const {
+  Eigen::VectorXd m(kin_.dof());
+  for (int i = 0; i < kin_.dof(); ++i) {
+    const auto& l = model_.arm.joints[static_cast<size_t>(i)].limits;
+    m[i] = std::min(q_[i] - l.min_rad, l.max_rad - q_[i]);
+  }
+  return m;
+}
+
+void SimEnon::integrate(Seconds full_dt) {
+  if (full_dt <= 0) return;
+  if (collided()) return;  // stopped where the contact was found
+  // Collision checks along the step, at sub-steps short enough that nothing tunnels; the motion
+  // ends at the first contact. The last sub-step is the full step (the same closed form).
+  std::vector<Collision> found;
+  Seconds dt = full_dt;
+  const double n_checks = std::ceil(motionBound(full_dt) / kMaxMotionPerCheck);
+  const int n = static_cast<int>(std::clamp(n_checks, 1.0, 1e5));
+  for (int k = 1; k <= n && found.empty(); ++k) {
+    const Seconds s = k == n ? full_dt : full_dt * k / n;
+    found = contacts(kinematicAfter(s), time_ + s);
+    if (!found.empty()) dt = s;
+  }
   const robot::RobotCommand& c = active_cmd_;
   // Base: exact arc; odometry integrates a noisy copy of the same increment.
   double v = c.base_v_mps, w = c.base_w_radps;
@@ -267,10 +519,15 @@ void SimEnon::integrate(Seconds dt) {
     qdot_[i] = (q_[i] - q0) / dt;
   }
   if (held_ >= 0) world_.objects[static_cast<size_t>(held_)].wMo = wMe() * eMo_held_;
+  slipIfTooHeavy();
+  latch(std::move(found));
 }
 
 ReturnType SimEnon::read(Seconds time, Seconds /*period*/, robot::RobotState* state) {
-  if (!configured_) return ReturnType::kError;
+  if (!configured_) {
+    last_error_ = "sim: read() before configure()";
+    return ReturnType::kError;
+  }
   if (active_) {
     applyDue(time_);
     while (time_ < time - kTimeEps) {
@@ -303,6 +560,10 @@ ReturnType SimEnon::read(Seconds time, Seconds /*period*/, robot::RobotState* st
   state->arm_qdot_radps = qdot_;
   state->gripper = gripper_;
   state->held_object = held_ >= 0 ? world_.objects[static_cast<size_t>(held_)].name : "";
+  if (collided()) {
+    last_error_ = collisions_.front().message();
+    return ReturnType::kError;
+  }
   return ReturnType::kOk;
 }
 
@@ -385,7 +646,16 @@ void registerSimBackend() {
     if (it == c.params.end() || it->second.empty())
       throw ConfigError(c.source.empty() ? model.path : c.source, "scenario",
                         "backend 'sim' needs a scenario file");
-    return makeSimRobot(model, loadScenario(it->second));
+    const std::string source = c.source.empty() ? model.path : c.source;
+    bool render = true;
+    if (const auto r = c.params.find("render"); r != c.params.end()) {
+      if (r->second != "true" && r->second != "false")
+        throw ConfigError(source, "render", "expected true or false, got '" + r->second + "'");
+      render = r->second == "true";
+    }
+    auto robot = makeSimRobot(model, loadScenario(it->second));
+    dynamic_cast<SimEnon&>(robot->hardware()).setRenderImages(render);
+    return robot;
   });
 }
 

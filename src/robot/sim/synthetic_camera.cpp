@@ -19,6 +19,17 @@ std::vector<TexturedPlane> worldPlanes(const World& world, const Pose& wMc) {
   return planes;
 }
 
+namespace {
+
+// cMo of every object; render and poses share it so that their poses are the same bits.
+void objectPoses(const World& world, const Pose& wMc, std::vector<Pose>* cMo) {
+  const Pose cMw = wMc.inverse();
+  cMo->clear();
+  for (const SimObject& o : world.objects) cMo->push_back(cMw * o.wMo);
+}
+
+}  // namespace
+
 SyntheticStereoCamera::SyntheticStereoCamera(const StereoRig& rig, const Degradation& deg,
                                              uint64_t seed, double exposure_s,
                                              const RenderOptions& render)
@@ -34,13 +45,11 @@ SyntheticStereoCamera::SyntheticStereoCamera(const StereoRig& rig, const Degrada
 cv::Mat SyntheticStereoCamera::renderEye(const Intrinsics& cam, const World& world, const Pose& wMc,
                                          const Twist& cVc, std::mt19937_64& rng,
                                          std::vector<Pose>* cMo) const {
-  const Pose cMw = wMc.inverse();
-  cMo->clear();
+  objectPoses(world, wMc, cMo);
   // Depth for the blur: the nearest object centre in front of the camera and inside the view.
   double depth = std::numeric_limits<double>::infinity();
-  for (const SimObject& o : world.objects) {
-    cMo->push_back(cMw * o.wMo);
-    const Eigen::Vector3d X = cMo->back().t;
+  for (const Pose& o : *cMo) {
+    const Eigen::Vector3d X = o.t;
     if (X.z() <= render_.near_m) continue;
     const Eigen::Vector2d p = cam.project(X);
     if (p.x() >= 0 && p.y() >= 0 && p.x() < cam.width && p.y() < cam.height) depth = std::min(depth, X.z());
@@ -90,6 +99,16 @@ SyntheticFrame SyntheticStereoCamera::render(const World& world, const Pose& wMl
   }
   right.join();
   if (right_error) std::rethrow_exception(right_error);
+  return f;
+}
+
+SyntheticFrame SyntheticStereoCamera::poses(const World& world, const Pose& wMl, Seconds stamp) {
+  SyntheticFrame f;
+  f.stamp = stamp;
+  rng_();  // the two eyes' noise seeds, as render() draws them
+  rng_();
+  objectPoses(world, wMl * rig_.lMr, &f.right_cMo);
+  objectPoses(world, wMl, &f.left_cMo);
   return f;
 }
 

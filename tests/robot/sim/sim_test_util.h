@@ -26,9 +26,9 @@ struct SimRig {
   void run(int n, const std::function<void(double)>& command, double t0 = 0) {
     for (int k = 0; k < n; ++k) {
       const double t = t0 + k * dt;
-      ASSERT_EQ(robot->read(t, dt), refgrasp::robot::ReturnType::kOk);
+      ASSERT_EQ(robot->read(t, dt), refgrasp::robot::ReturnType::kOk) << sim->lastError();
       if (command) command(t);
-      ASSERT_EQ(robot->write(t, dt), refgrasp::robot::ReturnType::kOk);
+      ASSERT_EQ(robot->write(t, dt), refgrasp::robot::ReturnType::kOk) << sim->lastError();
     }
   }
 };

@@ -220,6 +220,26 @@ TEST_F(BadScenario, WrongTypesAndValues) {
   expectError(replace(good(), "objects:\n", "objects: []\nunused:\n"), "", "");  // any error, one line
 }
 
+TEST_F(BadScenario, MassAndSolids) {
+  const std::string with_mass = replace(good(), "    shape: box\n", "    shape: box\n    mass_kg: 0.8\n");
+  const Scenario s = loadScenario(write(with_mass));
+  EXPECT_EQ(s.world.objects[0].mass_kg, 0.8);
+  EXPECT_EQ(loadScenario(write(good())).world.objects[0].mass_kg, kDefaultObjectMassKg);
+  // The box's solid spans its faces: front at z_o = 0, back at the depth.
+  ASSERT_EQ(s.world.objects[0].solids.size(), 1u);
+  EXPECT_NEAR((s.world.objects[0].solids[0].oMs.t - Eigen::Vector3d(0, 0, 0.035)).norm(), 0, 1e-12);
+  EXPECT_NEAR((s.world.objects[0].solids[0].half_m - Eigen::Vector3d(0.1, 0.1, 0.035)).norm(), 0, 1e-12);
+  // The table's block: from the floor to its top (its frame is on the top).
+  EXPECT_EQ(s.world.objects[1].kind, ObjectKind::kTable);
+  EXPECT_NEAR((s.world.objects[1].wMo * s.world.objects[1].solids[0].oMs).t.z(), 0.36, 1e-12);
+  expectError(replace(good(), "    shape: box\n", "    shape: box\n    mass_kg: 0\n"), "objects[0].mass_kg",
+              "must be positive");
+  expectError(replace(good(), "    shape: box\n", "    shape: box\n    mass_kg: heavy\n"), "objects[0].mass_kg",
+              "expected a number");
+  expectError(replace(good(), "    shape: box\n", "    shape: box\n    mass_kg: .nan\n"), "objects[0].mass_kg",
+              "finite");
+}
+
 TEST_F(BadScenario, MissingTextureAndDefinition) {
   expectError(replace(good(), "boxes/box_side_a.png", "boxes/nope.png"), "objects[0].side_texture",
               "texture file not found");

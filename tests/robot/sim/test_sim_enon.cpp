@@ -384,26 +384,38 @@ TEST(SimEnon, ScenarioTargetIsGraspedByACartesianServoLoop) {
   const EnonModel m = testing_util::enonModel();
   const double upper = m.arm.joints[2].d_m, fore = m.arm.joints[4].d_m + m.arm.nMe.t.z();
   const double drop = m.arm.bM0.t.z() - wMg.t.z();
-  sc.start_x_m = wMg.t.x() - fore - std::sqrt(upper * upper - drop * drop);
+  // The grasp configuration is reached 0.20 m short of the table (a servo from the hanging arm
+  // straight to the grasp frame would sweep the fingers through the table's edge); the base then
+  // drives the hand straight in along the approach axis.
+  const double approach = 0.20;
+  sc.start_x_m = wMg.t.x() - fore - std::sqrt(upper * upper - drop * drop) - approach;
   sc.start_y_m = wMg.t.y() - m.arm.bM0.t.y();  // shoulder in line with the object
   sc.start_theta_rad = 0;
   testing_util::SimRig r(sc, m);
-  const Pose bMg = r.sim->wMb().inverse() * wMg;
+  const Pose bMg = Pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(approach, 0, 0)).inverse() *
+                   r.sim->wMb().inverse() * wMg;  // in the base frame at the end of the drive
   double pos = 1, rot = 1;
   bool closing = false;
-  r.run(400, [&](double) {
+  double drive_start = -1;
+  r.run(400, [&](double t) {
     const Pose e = r.robot->arm().bMe();
     pos = (bMg.t - e.t).norm();
     rot = rotationError(e, bMg);
-    if (!closing && pos < 0.002 && rot < 0.02) {
+    if (drive_start < 0 && pos < 0.002 && rot < 0.02) drive_start = t;
+    const bool driving = drive_start >= 0 && t < drive_start + approach / 0.1 - 1e-9;
+    if (drive_start >= 0 && !driving && !closing) {
       closing = true;
       r.robot->gripper().close();
     }
+    r.robot->base().setVelocity(driving ? 0.1 : 0.0, 0);
     Twist v;
     v.v = 1.5 * (bMg.t - e.t);
     v.w = 1.5 * Pose(bMg.R * e.R.transpose(), Eigen::Vector3d::Zero()).rotationVector();
-    r.robot->arm().setVelocity(ArmFrame::kBase, closing ? Twist() : v);
+    r.robot->arm().setVelocity(ArmFrame::kBase, drive_start >= 0 ? Twist() : v);
   });
+  const auto g = r.sim->graspError(target);
+  pos = g->position_m;
+  rot = g->rotation_rad;
   std::printf("servo to grasp frame: %.4f m, %.4f rad, gripper %s\n", pos, rot,
               toString(r.robot->gripper().phase()));
   ASSERT_TRUE(closing);

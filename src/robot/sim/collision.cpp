@@ -1,0 +1,106 @@
+#include "robot/sim/collision.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace refgrasp::sim {
+
+namespace {
+
+// Signed distance to the axis-aligned box [-h, h] (box coordinates).
+double boxSdf(const Eigen::Vector3d& q, const Eigen::Vector3d& h) {
+  const Eigen::Vector3d d = q.cwiseAbs() - h;
+  const double outside = d.cwiseMax(0.0).norm();
+  const double inside = std::min(d.maxCoeff(), 0.0);
+  return outside + inside;
+}
+
+double rectSdf(const Eigen::Vector2d& q, const Eigen::Vector2d& h) {
+  const Eigen::Vector2d d = q.cwiseAbs() - h;
+  return d.cwiseMax(0.0).norm() + std::min(d.maxCoeff(), 0.0);
+}
+
+}  // namespace
+
+double signedDistance(const OrientedBox& box, const Eigen::Vector3d& p) {
+  return boxSdf(box.wMb.R.transpose() * (p - box.wMb.t), box.half_m);
+}
+
+double segmentSignedDistance(const OrientedBox& box, const Eigen::Vector3d& a,
+                             const Eigen::Vector3d& b, double* s_min, double tolerance_m) {
+  // In box coordinates, once.
+  const Eigen::Vector3d qa = box.wMb.R.transpose() * (a - box.wMb.t);
+  const Eigen::Vector3d qd = box.wMb.R.transpose() * (b - a);
+  const double len = qd.norm();
+  const auto f = [&](double s) { return boxSdf(qa + s * qd, box.half_m); };
+  double lo = 0, hi = 1;
+  // Golden section: the bracket [lo, hi] always holds a minimiser of the convex f.
+  constexpr double kInvPhi = 0.6180339887498949;
+  double x1 = hi - kInvPhi * (hi - lo), x2 = lo + kInvPhi * (hi - lo);
+  double f1 = f(x1), f2 = f(x2);
+  while ((hi - lo) * len > tolerance_m) {
+    if (f1 <= f2) {
+      hi = x2;
+      x2 = x1;
+      f2 = f1;
+      x1 = hi - kInvPhi * (hi - lo);
+      f1 = f(x1);
+    } else {
+      lo = x1;
+      x1 = x2;
+      f1 = f2;
+      x2 = lo + kInvPhi * (hi - lo);
+      f2 = f(x2);
+    }
+  }
+  // The minimiser is within tolerance of every point of the bracket; the ends of the segment
+  // are checked too (a minimum at s = 0 or 1 is reached only in the limit otherwise).
+  double best_s = f1 <= f2 ? x1 : x2, best = std::min(f1, f2);
+  for (const double s : {0.0, 1.0}) {
+    const double v = f(s);
+    if (v < best) best = v, best_s = s;
+  }
+  if (s_min) *s_min = best_s;
+  return best;
+}
+
+double signedDistance(const OrientedBox& box, const Capsule& c) {
+  return segmentSignedDistance(box, c.a, c.b) - c.radius_m;
+}
+
+double signedDistance(const OrientedBox& box, const VerticalCylinder& c) {
+  const Eigen::Matrix3d& R = box.wMb.R;
+  int vertical = -1;
+  for (int k = 0; k < 3; ++k)
+    if (std::abs(R(2, k)) > 1 - 1e-9) vertical = k;
+  Eigen::Vector2d u, v, h;  // horizontal axes (unit) and half extents of the box's footprint
+  double half_z;
+  if (vertical >= 0) {
+    const int i = (vertical + 1) % 3, j = (vertical + 2) % 3;
+    u = R.block<2, 1>(0, i).normalized();
+    v = R.block<2, 1>(0, j).normalized();
+    h = Eigen::Vector2d(box.half_m[i], box.half_m[j]);
+    half_z = box.half_m[vertical];
+  } else {
+    // Tilted: its world-axis-aligned bounding box.
+    const Eigen::Vector3d aabb = R.cwiseAbs() * box.half_m;
+    u = Eigen::Vector2d::UnitX();
+    v = Eigen::Vector2d::UnitY();
+    h = aabb.head<2>();
+    half_z = aabb.z();
+  }
+  const Eigen::Vector2d p = c.centre - box.wMb.t.head<2>();
+  const double horizontal = rectSdf(Eigen::Vector2d(p.dot(u), p.dot(v)), h) - c.radius_m;
+  const double z_lo = box.wMb.t.z() - half_z, z_hi = box.wMb.t.z() + half_z;
+  const double vertical_gap = std::max(z_lo - (c.z0_m + c.height_m), c.z0_m - z_hi);
+  // Distance between two prisms: both gaps combine; overlapping in one direction, the other
+  // decides; overlapping in both, the shallower penetration.
+  if (horizontal > 0 && vertical_gap > 0) return std::hypot(horizontal, vertical_gap);
+  return std::max(horizontal, vertical_gap);
+}
+
+double extentAlong(const OrientedBox& box, const Eigen::Vector3d& u) {
+  return 2 * (box.wMb.R.transpose() * u).cwiseAbs().dot(box.half_m);
+}
+
+}  // namespace refgrasp::sim
