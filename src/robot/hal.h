@@ -76,7 +76,7 @@ class RobotHardware {
   virtual ReturnType write(Seconds time, Seconds period, const RobotCommand& cmd,
                            Seconds valid_for_s) = 0;
   /// One line saying why the last read() or write() returned kError ("" when the backend does not
-  /// say), e.g. the simulated enon's "collision at t=3.21 s: forearm with table (4 mm)".
+  /// say), e.g. the simulated enon's "collision at t=3.21 s: forearm with table (4.0 mm)".
   virtual std::string lastError() const { return {}; }
 };
 

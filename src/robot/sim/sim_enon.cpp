@@ -110,6 +110,8 @@ SimEnon::SimEnon(const robot::EnonModel& model, const Scenario& scenario)
                         "unknown joint '" + f.stuck_joint + "' (known: " + known + ")");
     }
   }
+  for (int i = 0; i < kin_.dof(); ++i)
+    if (f.stuck_joint == "arm." + model_.arm.joints[static_cast<size_t>(i)].name) stuck_arm_joint_ = i;
   base_true_ = {scenario_.start_x_m, scenario_.start_y_m, scenario_.start_theta_rad};
   base_odom_ = base_true_;
   q_ = Eigen::VectorXd::Zero(kin_.dof());
@@ -344,7 +346,8 @@ SimEnon::Kinematic SimEnon::kinematicAfter(Seconds s) const {
   Kinematic k{robot::integrateUnicycle(base_true_, v, w, s), q_, fingerGapAt(time_ + s)};
   for (int i = 0; i < kin_.dof(); ++i) {
     const auto& j = model_.arm.joints[static_cast<size_t>(i)];
-    if (!stuck("arm." + j.name)) k.q[i] = robot::integrateJoint(j.limits, q_[i], c.arm_qdot_radps[i], s);
+    if (i != stuck_arm_joint_ || !stuck(scenario_.faults.stuck_joint))
+      k.q[i] = robot::integrateJoint(j.limits, q_[i], c.arm_qdot_radps[i], s);
   }
   return k;
 }
@@ -391,17 +394,8 @@ RobotShapes SimEnon::shapesOf(const Kinematic& k) const {
 
 RobotShapes SimEnon::shapes() const { return shapesOf({base_true_, q_, fingerGapAt(time_)}); }
 
-std::vector<Collision> SimEnon::contacts(const Kinematic& k, Seconds t) const {
-  const RobotShapes sh = shapesOf(k);
-  std::vector<Collision> found;
-  const auto add = [&](const std::string& link, const SimObject& o, double d) {
-    for (Collision& c : found)
-      if (c.link == link && c.object == o.name) {
-        c.depth_m = std::max(c.depth_m, -d);
-        return;
-      }
-    found.push_back({t, link, o.name, -d});
-  };
+template <class F>
+void SimEnon::visitPairs(const RobotShapes& sh, const double& below, F&& f) const {
   for (size_t i = 0; i < world_.objects.size(); ++i) {
     const SimObject& o = world_.objects[i];
     if (static_cast<int>(i) == held_) continue;
@@ -410,21 +404,38 @@ std::vector<Collision> SimEnon::contacts(const Kinematic& k, Seconds t) const {
       for (size_t c = 0; c < sh.capsules.size(); ++c) {
         if (static_cast<int>(c) >= kFirstFinger && static_cast<int>(i) == finger_exempt_) continue;
         const Capsule& cap = sh.capsules[c].second;
-        // Broad phase: the capsule's bounding sphere.
+        // Broad phase: a lower bound from the capsule's bounding sphere.
         const double bound = 0.5 * (cap.b - cap.a).norm() + cap.radius_m;
-        if (signedDistance(box, Eigen::Vector3d(0.5 * (cap.a + cap.b))) > bound) continue;
-        const double d = signedDistance(box, cap);
-        if (d < 0) add(sh.capsules[c].first, o, d);
+        if (signedDistance(box, Eigen::Vector3d(0.5 * (cap.a + cap.b))) - bound >= below) continue;
+        f(sh.capsules[c].first, o, signedDistance(box, cap));
       }
-      if (o.kind != ObjectKind::kFloor) {
-        const double d = signedDistance(box, sh.base);
-        if (d < 0) add("base", o, d);
-      }
+      if (o.kind != ObjectKind::kFloor) f("base", o, signedDistance(box, sh.base));
     }
   }
+}
+
+std::vector<Collision> SimEnon::contacts(const Kinematic& k, Seconds t) const {
+  std::vector<Collision> found;
+  visitPairs(shapesOf(k), 0.0, [&](const std::string& link, const SimObject& o, double d) {
+    if (d >= 0) return;
+    for (Collision& c : found)
+      if (c.link == link && c.object == o.name) {
+        c.depth_m = std::max(c.depth_m, -d);
+        return;
+      }
+    found.push_back({t, link, o.name, -d});
+  });
   std::sort(found.begin(), found.end(),
             [](const Collision& a, const Collision& b) { return a.depth_m > b.depth_m; });
   return found;
+}
+
+Proximity SimEnon::nearest() const {
+  Proximity p;
+  visitPairs(shapes(), p.distance_m, [&](const std::string& link, const SimObject& o, double d) {
+    if (d < p.distance_m) p = {link, o.name, d};
+  });
+  return p;
 }
 
 void SimEnon::checkNow() {
@@ -515,7 +526,8 @@ void SimEnon::integrate(Seconds full_dt) {
   for (int i = 0; i < kin_.dof(); ++i) {
     const auto& j = model_.arm.joints[static_cast<size_t>(i)];
     const double q0 = q_[i];
-    if (!stuck("arm." + j.name)) q_[i] = robot::integrateJoint(j.limits, q_[i], c.arm_qdot_radps[i], dt);
+    if (i != stuck_arm_joint_ || !stuck(scenario_.faults.stuck_joint))
+      q_[i] = robot::integrateJoint(j.limits, q_[i], c.arm_qdot_radps[i], dt);
     qdot_[i] = (q_[i] - q0) / dt;
   }
   if (held_ >= 0) world_.objects[static_cast<size_t>(held_)].wMo = wMe() * eMo_held_;

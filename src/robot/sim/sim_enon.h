@@ -25,7 +25,7 @@
 // collision is an emergency stop, latched for the life of the SimEnon: the state stays where the
 // contact was found, every actuator stops (the gripper too), write() ignores every command and
 // returns kError, read() fills the state and returns kError, and lastError() says
-// "collision at t=3.21 s: forearm with table (4 mm)" (the deepest contact). collisions() lists
+// "collision at t=3.21 s: forearm with table (4.0 mm)" (the deepest contact). collisions() lists
 // every contact found at that check. Camera frames keep coming.
 //
 // Grasping: the gripper closes in close_time_s (the fingers' gap shrinks linearly from
@@ -71,7 +71,7 @@ struct Collision {
   std::string link;     ///< "upper_arm", "forearm", "palm", "finger_x+", "finger_x-" or "base"
   std::string object;   ///< world object: a scenario object's name, "table", "floor" or "walls"
   double depth_m = 0;   ///< penetration depth (m, > 0)
-  /// "collision at t=3.21 s: forearm with table (4 mm)"
+  /// "collision at t=3.21 s: forearm with table (4.0 mm)" (depth: 0 decimals from 10 mm, 2 below 1 mm)
   std::string message() const;
 };
 
@@ -80,6 +80,13 @@ struct GraspError {
   double position_m = 0;    ///< |e origin - g origin| (the grasp rule's distance)
   double rotation_rad = 0;  ///< angle of the rotation between e and g (the grasp rule's angle)
   Pose eMg;                 ///< grasp frame in the gripper frame
+};
+
+/// The robot shape nearest the world (ground truth, for logs), among the pairs the collision
+/// check considers; link and object as in Collision.
+struct Proximity {
+  std::string link, object;
+  double distance_m = 1e300;  ///< signed distance (m): the gap, < 0 penetrating
 };
 
 /// The robot's collision shapes at one instant, in the world frame.
@@ -149,6 +156,8 @@ class SimEnon : public robot::RobotHardware {
   double fingerGap() const { return fingerGapAt(time_); }
   /// The robot's collision shapes at the current state.
   RobotShapes shapes() const;
+  /// The nearest pair now (exact; a few microseconds).
+  Proximity nearest() const;
 
  private:
   friend class SimStereoCamera;
@@ -176,6 +185,10 @@ class SimEnon : public robot::RobotHardware {
   /// The true kinematic state after s more seconds of the command in force.
   Kinematic kinematicAfter(Seconds s) const;
   RobotShapes shapesOf(const Kinematic& k) const;
+  /// Calls f(link, object, signed distance) for every pair the collision check considers, except
+  /// pairs the broad phase proves to be at least `below` apart.
+  template <class F>
+  void visitPairs(const RobotShapes& shapes, const double& below, F&& f) const;
   /// Every contact of the robot in state k at time t, deepest first.
   std::vector<Collision> contacts(const Kinematic& k, Seconds t) const;
   /// Latches the contacts of the current state, if any (start-up and teleports).
@@ -211,7 +224,8 @@ class SimEnon : public robot::RobotHardware {
   Pose eMo_held_;
   Pose wMg_grasped_;        ///< grasp frame of the held object when it was grasped
   Pose wMo_grasped_;        ///< ... and the object
-  int finger_exempt_ = -1;  ///< the item the fingers close on (not checked against the fingers)
+  int finger_exempt_ = -1;
+  int stuck_arm_joint_ = -1;  ///< index of faults.stuck_joint among the arm joints, -1 if none  ///< the item the fingers close on (not checked against the fingers)
   double gap_from_ = 0, gap_to_ = 0;  ///< finger gap moves linearly between these ...
   Seconds gap_t0_ = 0, gap_t1_ = 0;   ///< ... over this time interval
   double arm_lever_m_ = 0;  ///< bound of the distance from any arm joint axis to any point beyond it

@@ -172,11 +172,16 @@ TEST(SimContact, HandDrivenIntoAWideBoxStopsOnTheFingertips) {
   const EnonModel m = testing_util::enonModel();
   auto rig = facingABox(m, "wide_box", 0.20, {0.40, 0.20, 0.10}, false);
   testing_util::SimRig& r = *rig;
+  const double gap = 0.20 - (m.gripper.finger_length_m - m.gripper.palm_offset_m) - m.gripper.finger_radius_m;
+  const sim::Proximity near = r.sim->nearest();
+  EXPECT_NEAR(near.distance_m, gap, 1e-9);
+  EXPECT_EQ(near.object, "wide_box");
+  EXPECT_EQ(near.link.rfind("finger_x", 0), 0u) << near.link;
   const double t = driveUntilError(r, 0.3);
   ASSERT_GT(t, 0) << "no collision";
   // Fingertips (0.03 m past e, radius 0.012) reach the face after 0.20 - 0.042 m.
-  EXPECT_NEAR(r.sim->trueBasePose().x_m, 0.20 - (m.gripper.finger_length_m - m.gripper.palm_offset_m) -
-                                             m.gripper.finger_radius_m, 0.0021);
+  EXPECT_NEAR(r.sim->trueBasePose().x_m, gap, 0.0021);
+  EXPECT_LT(r.sim->nearest().distance_m, 0);
   EXPECT_TRUE(hasContact(*r.sim, "finger_x+", "wide_box"));
   EXPECT_TRUE(hasContact(*r.sim, "finger_x-", "wide_box"));
   EXPECT_EQ(r.sim->collisions().size(), 2u);
