@@ -100,6 +100,7 @@ int main(int argc, char** argv) {
   int frames = 200, threads = 2;
   uint64_t seed = 1;
   std::string texture = "targets/poster_concert.png", only, profile;
+  bool stages_only = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--help" || a == "-h") {
@@ -119,6 +120,8 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "bench_sift: --profile takes extract, detect or roi\n");
         return 2;
       }
+    } else if (a == "--stages") {
+      stages_only = true;
     } else if (a == "--only" && i + 1 < argc) {
       only = argv[++i];
       if (only != "fast" && only != "opencv") {
@@ -185,6 +188,33 @@ int main(int argc, char** argv) {
     std::printf("bench_sift --profile %s (%s): %d frames, %ld %s\n", profile.c_str(),
                 impl == SiftImplementation::kFast ? "fast" : "cv::SIFT", frames, total,
                 profile == "detect" ? "detections" : "features");
+    return 0;
+  }
+  if (stages_only) {  // the fast extractor's stages, thread CPU time, 1 thread
+    std::vector<double> st[5];
+    FastSiftCall call;
+    call.isa = bestSiftIsa();
+    call.threads = 1;
+    for (int rep = 0; rep < 2; ++rep)
+      for (int i = 0; i < frames; ++i) {
+        FastSiftStats s;
+        call.stats = &s;
+        std::vector<cv::KeyPoint> k;
+        cv::Mat d;
+        const double total = threadCpuMs([&] {
+          fastSiftDetectAndCompute(data[i].left, siftFor(SiftImplementation::kFast, 1), call, &k, &d);
+        });
+        if (rep == 0) continue;  // warm-up pass
+        st[0].push_back(s.scale_space_cpu_ms);
+        st[1].push_back(s.localise_cpu_ms);
+        st[2].push_back(s.describe_cpu_ms);
+        st[3].push_back(s.output_cpu_ms);
+        st[4].push_back(total);
+      }
+    std::printf("fast extractor (%s), %d frames, thread CPU medians (ms): scale space %.2f | localisation %.2f | "
+                "orientation + descriptors %.2f | output %.2f | total %.2f\n",
+                siftIsaName(call.isa), frames, median(st[0]), median(st[1]), median(st[2]), median(st[3]),
+                median(st[4]));
     return 0;
   }
   const int sample = std::min(frames, 48);  // frames for the per-frame medians

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <ctime>
 #include <memory>
 #include <numeric>
 #include <opencv2/core/utility.hpp>
@@ -658,10 +659,20 @@ bool strongerFirst(const cv::KeyPoint& a, const cv::KeyPoint& b) {
 void fastSiftDetectAndCompute(const cv::Mat& gray8, const SiftOptions& opt, const FastSiftCall& call,
                               std::vector<cv::KeyPoint>* keypoints, cv::Mat* descriptors) {
   CV_Assert(gray8.type() == CV_8UC1 && !gray8.empty());
-  using Clock = std::chrono::steady_clock;
-  auto ms = [](Clock::time_point a, Clock::time_point b) {
-    return std::chrono::duration<double, std::milli>(b - a).count();
+  // Stage times: wall clock and the calling thread's CPU time (ms).
+  struct Clock {
+    struct time_point {
+      double wall, cpu;
+    };
+    static time_point now() {
+      timespec c{};
+      clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c);
+      return {std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now().time_since_epoch()).count(),
+              1e3 * static_cast<double>(c.tv_sec) + 1e-6 * static_cast<double>(c.tv_nsec)};
+    }
   };
+  auto ms = [](Clock::time_point a, Clock::time_point b) { return b.wall - a.wall; };
+  auto cpuMs = [](Clock::time_point a, Clock::time_point b) { return b.cpu - a.cpu; };
   FastSiftStats stats;
   const si::Kernels& K = kernelsFor(call.isa);
   const Params P = makeParams(opt);
@@ -742,6 +753,7 @@ void fastSiftDetectAndCompute(const cv::Mat& gray8, const SiftOptions& opt, cons
                 &ws.candidates);
     const auto t1 = Clock::now();
     stats.scale_space_ms += ms(t0, t1);
+    stats.scale_space_cpu_ms += cpuMs(t0, t1);
     ++stats.octaves_built;
     if (!detect) continue;
     ++stats.octaves_searched;
@@ -762,7 +774,9 @@ void fastSiftDetectAndCompute(const cv::Mat& gray8, const SiftOptions& opt, cons
     extrema.erase(std::unique(extrema.begin() + first, extrema.end(),
                               [](const Extremum& a, const Extremum& b) { return a.sameSpot(b); }),
                   extrema.end());
-    stats.localise_ms += ms(t1, Clock::now());
+    const auto t1e = Clock::now();
+    stats.localise_ms += ms(t1, t1e);
+    stats.localise_cpu_ms += cpuMs(t1, t1e);
   }
   stats.extrema = static_cast<int>(extrema.size());
 
@@ -825,6 +839,7 @@ void fastSiftDetectAndCompute(const cv::Mat& gray8, const SiftOptions& opt, cons
   auto t4 = Clock::now();
   descriptors->create(nk, kDescrLen, CV_32F);
   stats.describe_ms = ms(t2, t4);
+  stats.describe_cpu_ms = cpuMs(t2, t4);
   if (fused) {
     for (int q = 0; q < nk; ++q) std::memcpy(descriptors->ptr<float>(q), desc_of[order[q]], kDescrLen * sizeof(float));
   } else {
@@ -858,10 +873,15 @@ void fastSiftDetectAndCompute(const cv::Mat& gray8, const SiftOptions& opt, cons
     });
   }
   const auto t5 = Clock::now();
-  if (!fused) stats.describe_ms += ms(t4, t5);  // the kept keypoints' descriptors
+  if (!fused) {  // the kept keypoints' descriptors
+    stats.describe_ms += ms(t4, t5);
+    stats.describe_cpu_ms += cpuMs(t4, t5);
+  }
   keypoints->resize(nk);
   for (int q = 0; q < nk; ++q) (*keypoints)[q] = kps[order[q]].kp;
-  stats.output_ms = ms(t4, Clock::now()) - (fused ? 0 : ms(t4, t5));
+  const auto t6 = Clock::now();
+  stats.output_ms = ms(t4, t6) - (fused ? 0 : ms(t4, t5));
+  stats.output_cpu_ms = cpuMs(t4, t6) - (fused ? 0 : cpuMs(t4, t5));
   stats.keypoints = nk;
   if (call.stats) *call.stats = stats;
 }

@@ -28,13 +28,14 @@ SiftIsa bestSiftIsa();
 bool siftIsaSupported(SiftIsa isa);
 const char* siftIsaName(SiftIsa isa);
 
-/// What one call did and where its time went (wall clock of this call's stages, ms).
+/// What one call did and where its time went: wall clock of this call's stages and the calling
+/// thread's CPU time in them (ms; with FastSiftCall::threads = 1 that is all the work).
 struct FastSiftStats {
-  double scale_space_ms = 0;  ///< pyramid + DoG + extremum test (one sweep per octave)
+  double scale_space_ms = 0;  ///< pyramid + DoG + extremum test + gradients (one sweep per octave)
   double localise_ms = 0;     ///< sub-pixel interpolation, contrast and edge tests, duplicates
-  /// Gradient tiles where the windows reach, orientation histograms and descriptors.
-  double describe_ms = 0;
+  double describe_ms = 0;     ///< orientation histograms and descriptors
   double output_ms = 0;       ///< sort strongest first, cut to max_features, copy out
+  double scale_space_cpu_ms = 0, localise_cpu_ms = 0, describe_cpu_ms = 0, output_cpu_ms = 0;
   int octaves_built = 0, octaves_searched = 0;
   int candidates = 0, extrema = 0, keypoints = 0;
 };
