@@ -1,6 +1,7 @@
 #include "detector/sift_fast.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cfloat>
 #include <chrono>
 #include <climits>
@@ -108,6 +109,7 @@ class Buffer {
     }
     return data_.get();
   }
+  size_t size() const { return size_; }
 
  private:
   std::unique_ptr<float, FreeDeleter> data_;
@@ -133,12 +135,12 @@ Kernel gaussianKernel(double sigma) {
 
 /// One octave of the Gaussian scale space: `layers` planes of w x h floats. Rows carry `pad`
 /// floats of BORDER_REFLECT_101 copies on each side (the next blur reads them) plus slack for
-/// the vector kernels' over-reads. Layers 1..n_layers (where keypoints live) of a searched octave
-/// also get gradient planes (rows 1..h-2, columns 1..w-2), computed by the sweep.
+/// the vector kernels' over-reads.
 struct Octave {
   int w = 0, h = 0, stride = 0, pad = 0;
   std::vector<float*> g;
-  std::vector<float*> mag, ori;  ///< per layer; null for layers without keypoints
+  /// Unique per octave and call (gradient windows cached in per-thread scratch are keyed by it).
+  uint64_t generation = 0;
   float* row(int layer, int y) const { return g[layer] + static_cast<ptrdiff_t>(y) * stride; }
   float at(int layer, int y, int x) const { return row(layer, y)[x]; }
   /// DoG layer `layer` (= g[layer + 1] - g[layer]) as the sweep computed it.
@@ -221,11 +223,14 @@ Params makeParams(const SiftOptions& opt) {
 
 /// Per-thread memory, reused from one call to the next.
 struct Workspace {
-  Buffer pyramid, gradients, rings, dog, temp;
+  Buffer pyramid, rings, dog, temp;
   std::vector<Octave> octaves;
   std::vector<Candidate> candidates;
   std::vector<int32_t> cols;
 };
+
+/// Source of Octave::generation.
+std::atomic<uint64_t> generation{0};
 
 Workspace& workspace() {
   thread_local Workspace ws;
@@ -248,6 +253,13 @@ struct KeypointScratch {
   float* slots_ = nullptr;
   std::vector<int32_t> index;
   std::vector<uint32_t> bits;
+  /// The last gradient window (gradientPatch) and what it covers.
+  Buffer patch_mag, patch_ori;
+  size_t patch_zeroed = 0;
+  si::GradientPatch patch;
+  uint64_t patch_generation = 0;  ///< Octave::generation of the window's pyramid
+  int patch_layer = -1, patch_r = 0, patch_c = 0, patch_radius = -1, patch_square = -1;
+  float patch_disc = 0;
 };
 
 KeypointScratch& keypointScratch() {
@@ -265,8 +277,7 @@ KeypointScratch& keypointScratch() {
 /// o-1. Strips keep the rows in flight (the wavefront's lag times the layers) in L2: layer i of a
 /// strip is computed on the strip widened by the columns the later layers read (their kernels'
 /// half-widths, plus 1 for the DoG's 3-tap max/min), so every pixel gets the same arithmetic as
-/// in one full-width sweep. When `detect`, the gradient planes of layers 1..n_layers are filled
-/// too, a row as soon as the row below it exists (still in cache).
+/// in one full-width sweep.
 void sweepOctave(const si::Kernels& K, const Params& P, int o, const cv::Mat& input,
                  const Octave* prev, Octave& oct, int n_build, bool detect, Workspace& ws,
                  std::vector<Candidate>* cands) {
@@ -384,14 +395,6 @@ void sweepOctave(const si::Kernels& K, const Params& P, int o, const cv::Mat& in
           if (x0 == 0) fillPad(oct.row(i, y), W, oct.pad, true);
           if (c1[i] == W) fillPad(oct.row(i, y), W, oct.pad, false);
         }
-        if (detect && i >= 1 && i <= P.n_layers) {
-          // Gradient rows y0-1 .. y1-2 (and the last valid one, h-2, with the last block), on the
-          // strip's own columns, from rows above and below that now exist.
-          const int gy0 = std::max(1, y0 - 1), gy1 = std::min(H - 1, y1 == H ? H - 1 : y1 - 1);
-          const int gx0 = std::max(1, sx0), gx1 = std::min(W - 1, sx1);
-          if (gy0 < gy1 && gx0 < gx1)
-            K.gradient_rows(oct.g[i], S, oct.mag[i], oct.ori[i], gy0, gy1, gx0, gx1);
-        }
       }
       if (!detect) continue;
       // The last layer's newest block: its DoG rows, then the extremum test of the rows whose
@@ -506,17 +509,59 @@ bool interpolate(const Octave& oct, const Params& P, int o, Candidate cand, Extr
   return true;
 }
 
-/// The gradient samples around (r, c) of `layer` within `radius` (from the sweep's planes).
-si::GradientPatch patchAround(const Octave& oct, int layer, int r, int c, int radius) {
+/// The gradient samples (magnitude, angle) around (r, c) of `layer`, computed into the thread's
+/// scratch (not as whole gradient planes in the sweep: those went to memory and back, and cost
+/// more than computing the windows, which cover part of the image): rows |i| <= radius; in row i the columns |j| <= `square` (|i| <= square) and those
+/// within the disc of radius `disc` (+1 sample; disc = 0: all |j| <= radius). A window is computed
+/// once per spot and reused while it covers what is asked for (orientation, then descriptors).
+si::GradientPatch gradientPatch(const si::Kernels& K, const Octave& oct, int layer, int r, int c, int radius,
+                                int square, float disc, KeypointScratch& s) {
+  const float disc_key = disc > 0 ? disc : 1e30f;
+  if (s.patch_generation == oct.generation && s.patch_layer == layer && s.patch_r == r && s.patch_c == c &&
+      s.patch_radius >= radius && s.patch_square >= square && s.patch_disc >= disc_key)
+    return s.patch;
   si::GradientPatch p;
-  const ptrdiff_t o = static_cast<ptrdiff_t>(r) * oct.stride + c;
-  p.mag = oct.mag[layer] + o;
-  p.ori = oct.ori[layer] + o;
-  p.pitch = oct.stride;
+  // Columns -radius - 16 .. radius + 16 (the kernels' vector loads run past the window).
+  const int pitch = roundUp(2 * radius + 1 + 32, 16);
+  const size_t floats = static_cast<size_t>(2 * radius + 1) * pitch + 64;
+  float* mag = s.patch_mag.get(floats);
+  float* ori = s.patch_ori.get(floats);
+  if (floats > s.patch_zeroed) {  // the lanes past a row's samples are read, never used: keep them finite
+    std::fill(mag, mag + s.patch_mag.size(), 0.f);
+    std::fill(ori, ori + s.patch_mag.size(), 0.f);
+    s.patch_zeroed = s.patch_mag.size();
+  }
+  const ptrdiff_t centre = static_cast<ptrdiff_t>(radius) * pitch + radius + 16;
+  p.mag = mag + centre;
+  p.ori = ori + centre;
+  p.pitch = pitch;
   p.i0 = std::max(-radius, 1 - r);
   p.i1 = std::min(radius, oct.h - 2 - r);
   p.j0 = std::max(-radius, 1 - c);
   p.j1 = std::min(radius, oct.w - 2 - c);
+  const float* img = oct.g[layer];
+  for (int i = p.i0; i <= p.i1; ++i) {
+    int half = radius;
+    if (disc > 0) {
+      const float q = disc * disc - static_cast<float>(i) * static_cast<float>(i);
+      half = q > 0 ? static_cast<int>(std::sqrt(q)) + 1 : 0;
+      if (std::abs(i) <= square) half = std::max(half, square);
+      half = std::min(half, radius);
+    }
+    const int ja = std::max(p.j0, -half), jb = std::min(p.j1, half);
+    if (ja > jb) continue;
+    const ptrdiff_t o = static_cast<ptrdiff_t>(i) * pitch + ja;
+    K.gradient_span(img + static_cast<ptrdiff_t>(r + i) * oct.stride + c + ja, oct.stride, mag + centre + o, ori + centre + o,
+                    jb - ja + 1);
+  }
+  s.patch = p;
+  s.patch_generation = oct.generation;
+  s.patch_layer = layer;
+  s.patch_r = r;
+  s.patch_c = c;
+  s.patch_radius = radius;
+  s.patch_square = square;
+  s.patch_disc = disc_key;
   return p;
 }
 
@@ -528,13 +573,20 @@ int descriptorRadius(const Octave& oct, float scl) {
                                                       static_cast<double>(oct.h) * oct.h)));
 }
 
+/// Radius (octave px) of the disc holding every sample of the descriptor's rotated 4x4 grid
+/// (half-side (d + 1) / 2 histogram widths, whatever the angle).
+float descriptorDisc(float scl) {
+  return kDescrSclFactor * scl * (kDescrWidth + 1) * 0.5f * 1.4142135623730951f;
+}
+
 float keypointScale(const Params& P, int layer, float xi) {
   return P.sigma * std::pow(2.f, (layer + xi) / P.n_layers);
 }
 
-/// The keypoints (one per orientation peak) of an interpolated extremum, appended to *out.
+/// The keypoints (one per orientation peak) of an interpolated extremum, appended to *out. With
+/// `descriptor_window`, the gradient window computed covers the descriptor's too (describeSpot).
 void orientations(const si::Kernels& K, const Params& P, const Octave& oct, const Extremum& e,
-                  KeypointScratch& s, std::vector<Kp>* out) {
+                  bool descriptor_window, KeypointScratch& s, std::vector<Kp>* out) {
   const int o = e.octave;
   Kp base;
   cv::KeyPoint& kpt = base.kp;
@@ -552,7 +604,13 @@ void orientations(const si::Kernels& K, const Params& P, const Octave& oct, cons
   const float scl_octv = kpt.size * 0.5f / (1 << o);
   const int radius = cvRoundF(kOriRadius * scl_octv);
   const float sigma = kOriSigFactor * scl_octv;
-  const si::GradientPatch p = patchAround(oct, e.layer, e.r, e.c, radius);
+  si::GradientPatch p;
+  if (descriptor_window) {
+    const int rd = descriptorRadius(oct, base.scl);
+    p = gradientPatch(K, oct, e.layer, e.r, e.c, std::max(radius, rd), radius, descriptorDisc(base.scl), s);
+  } else {
+    p = gradientPatch(K, oct, e.layer, e.r, e.c, radius, radius, 0.f, s);
+  }
   float raw[kOriBins + 4];
   float* temp = raw + 2;
   if (!p.empty()) {
@@ -594,7 +652,7 @@ void describeSpot(const si::Kernels& K, const Octave& oct, const Kp* kps, int co
   const int pr = cvRoundF(k0.ptf_y), pc = cvRoundF(k0.ptf_x);
   const float hist_width = kDescrSclFactor * k0.scl;
   const int radius = descriptorRadius(oct, k0.scl);
-  const si::GradientPatch p = patchAround(oct, k0.layer, pr, pc, radius);
+  const si::GradientPatch p = gradientPatch(K, oct, k0.layer, pr, pc, radius, 0, descriptorDisc(k0.scl), s);
   si::DescriptorScratch ds;
   ds.weights = s.weights.get(si::kDescrBlock * 8 * 16 + 64);
   s.index.resize(si::kDescrBlock * 16 + 16);
@@ -703,7 +761,7 @@ void fastSiftDetectAndCompute(const cv::Mat& gray8, const SiftOptions& opt, cons
   int max_h = P.init.h;
   for (const Kernel& k : P.kernels) max_h = std::max(max_h, k.h);
   const int pad = roundUp(std::max(max_h, 1), 16);
-  size_t total = 0, total_grad = 0;
+  size_t total = 0;
   for (int o = 0, w = W0, h = H0; o <= last_octave; ++o, w /= 2, h /= 2) {
     Octave& oct = ws.octaves[o];
     oct.w = w;
@@ -711,28 +769,18 @@ void fastSiftDetectAndCompute(const cv::Mat& gray8, const SiftOptions& opt, cons
     oct.pad = pad;
     oct.stride = roundUp(w + 2 * pad + 32, 16);
     total += static_cast<size_t>(L) * h * oct.stride + 64;
-    total_grad += static_cast<size_t>(2 * P.n_layers) * h * oct.stride + 64;
   }
   float* mem = ws.pyramid.get(total + 64);
-  float* gmem = ws.gradients.get(total_grad + 64);
   std::vector<bool> search(ws.octaves.size(), true);
   for (int o = 0; o <= last_octave; ++o) {
     Octave& oct = ws.octaves[o];
     oct.g.assign(L, nullptr);
-    oct.mag.assign(L, nullptr);
-    oct.ori.assign(L, nullptr);
+    oct.generation = ++generation;
     for (int i = 0; i < L; ++i) {
       oct.g[i] = mem + pad;
       mem += static_cast<size_t>(oct.h) * oct.stride;
     }
     mem += 64;
-    for (int i = 1; i <= P.n_layers; ++i) {
-      oct.mag[i] = gmem + pad;
-      gmem += static_cast<size_t>(oct.h) * oct.stride;
-      oct.ori[i] = gmem + pad;
-      gmem += static_cast<size_t>(oct.h) * oct.stride;
-    }
-    gmem += 64;
     double lo, hi;
     octaveSizes(o, &lo, &hi);
     if (prune) search[o] = hi >= call.min_size && lo <= call.max_size;
@@ -804,7 +852,7 @@ void fastSiftDetectAndCompute(const cv::Mat& gray8, const SiftOptions& opt, cons
       const Extremum& x = extrema[q];
       const Octave& oct = ws.octaves[x.octave];
       const size_t first = part.kps.size();
-      orientations(K, P, oct, x, s, &part.kps);
+      orientations(K, P, oct, x, fused, s, &part.kps);
       size_t kept = first;
       for (size_t i = first; i < part.kps.size(); ++i)
         if (wanted(part.kps[i])) part.kps[kept++] = part.kps[i];

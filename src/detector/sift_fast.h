@@ -8,7 +8,8 @@
 //  - extrema: OpenCV's threshold, 26-neighbour test, sub-pixel interpolation (5 steps, its 3x3
 //    solve), contrast and edge tests, the same floating-point expressions;
 //  - orientation (36 bins, smoothing, 0.8 peaks, parabolic fit) and the 4x4x8 descriptor
-//    (trilinear, 0.2 clip, normalisation, uchar rounding) as OpenCV computes them, vectorised.
+//    (trilinear, 0.2 clip, normalisation, uchar rounding) as OpenCV computes them, vectorised,
+//    from one window of gradients per keypoint spot (computed where the windows are only);
 //    Differences left: the exp and atan approximations and the summation order of the histograms
 //    differ from OpenCV's in the last bits (tests/detector/test_sift_fast.cpp measures the effect).
 //  - pruning before the work: octaves that cannot yield a keypoint in the wanted size range are
@@ -31,9 +32,9 @@ const char* siftIsaName(SiftIsa isa);
 /// What one call did and where its time went: wall clock of this call's stages and the calling
 /// thread's CPU time in them (ms; with FastSiftCall::threads = 1 that is all the work).
 struct FastSiftStats {
-  double scale_space_ms = 0;  ///< pyramid + DoG + extremum test + gradients (one sweep per octave)
+  double scale_space_ms = 0;  ///< pyramid + DoG + extremum test (one sweep per octave)
   double localise_ms = 0;     ///< sub-pixel interpolation, contrast and edge tests, duplicates
-  double describe_ms = 0;     ///< orientation histograms and descriptors
+  double describe_ms = 0;     ///< gradient windows, orientation histograms and descriptors
   double output_ms = 0;       ///< sort strongest first, cut to max_features, copy out
   double scale_space_cpu_ms = 0, localise_cpu_ms = 0, describe_cpu_ms = 0, output_cpu_ms = 0;
   int octaves_built = 0, octaves_searched = 0;

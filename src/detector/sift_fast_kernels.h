@@ -18,9 +18,10 @@
 
 namespace refgrasp::detector::sift_internal {
 
-/// Gradients around one keypoint, read from the gradient planes of its Gaussian image: sample
-/// (i, j) is image row r + i, column c + j, at mag[i * pitch + j] (mag points at (r, c)). Only
-/// rows i0..i1 and columns j0..j1 (inclusive offsets) exist: 0 < row < rows-1, 0 < col < cols-1.
+/// Gradients around one keypoint, computed from its Gaussian image into a window: sample (i, j)
+/// is image row r + i, column c + j, at mag[i * pitch + j] (mag points at (r, c)). Only rows
+/// i0..i1 and columns j0..j1 (inclusive offsets) exist: 0 < row < rows-1, 0 < col < cols-1 (and
+/// within a row only the columns the window was computed for: see gradientPatch).
 struct GradientPatch {
   const float* mag = nullptr;  ///< sqrt(dx^2 + dy^2), dx = I(r, c+1) - I(r, c-1), dy = I(r-1, c) - I(r+1, c)
   const float* ori = nullptr;  ///< atan2(dy, dx) in degrees, [0, 360] (OpenCV's fastAtan2 polynomial)
@@ -78,10 +79,10 @@ struct Kernels {
   /// Writes the columns found to cols, returns their count.
   int (*extrema_row)(const float* centre, const float* const* mx, const float* const* mn, int c0,
                      int c1, float thr, int32_t* cols);
-  /// Gradient magnitude and angle (see GradientPatch) of rows [y0, y1), columns [x0, x1) of
-  /// `img` into the planes mag/ori (same stride); writes may run up to 15 floats past x1.
-  void (*gradient_rows)(const float* img, int stride, float* mag, float* ori, int y0, int y1, int x0,
-                        int x1);
+  /// Gradient magnitude and angle (see GradientPatch) of the n pixels p[0 .. n-1] of an image
+  /// with row stride `stride` into mag[0 .. n-1], ori[0 .. n-1]; writes may run up to 15 floats
+  /// past n (and reads 16 past p[n]).
+  void (*gradient_span)(const float* p, int stride, float* mag, float* ori, int n);
   /// OpenCV's orientation histogram (n bins, unsmoothed) of the patch samples with |i|, |j| <=
   /// radius, weighted by exp(-(i^2 + j^2) / (2 sigma^2)); hist has n floats (cleared here);
   /// gauss: scratch of 2 x radius + 48 floats.

@@ -195,19 +195,13 @@ int extremaRow(const float* centre, const float* const* mx, const float* const* 
   return count;
 }
 
-void gradientRows(const float* img, int stride, float* mag, float* ori, int y0, int y1, int x0, int x1) {
+void gradientSpan(const float* p, int stride, float* mag, float* ori, int n) {
   constexpr int N = V::N;
-  for (int y = y0; y < y1; ++y) {
-    const size_t o = static_cast<size_t>(y) * stride;
-    const float* row = img + o;
-    const float* up = row - stride;
-    const float* dn = row + stride;
-    for (int x = x0; x < x1; x += N) {
-      const V::F dx = V::sub(V::load(row + x + 1), V::load(row + x - 1));
-      const V::F dy = V::sub(V::load(up + x), V::load(dn + x));
-      V::store(mag + o + x, V::sqrt(V::fma(dx, dx, V::mul(dy, dy))));
-      V::store(ori + o + x, atanDegV(dy, dx));
-    }
+  for (int x = 0; x < n; x += N) {
+    const V::F dx = V::sub(V::load(p + x + 1), V::load(p + x - 1));
+    const V::F dy = V::sub(V::load(p + x - stride), V::load(p + x + stride));
+    V::store(mag + x, V::sqrt(V::fma(dx, dx, V::mul(dy, dy))));
+    V::store(ori + x, atanDegV(dy, dx));
   }
 }
 
@@ -394,4 +388,4 @@ void descriptorHist(const GradientPatch& p, int radius, float cos_t, float sin_t
 }
 
 const Kernels kTable = {kIsaName,   rowFilter,    colFilter,       upsampleRow,   dogRow,
-                        extremaRow, gradientRows, orientationHist, descriptorHist};
+                        extremaRow, gradientSpan, orientationHist, descriptorHist};
