@@ -38,10 +38,10 @@ void SiftOptions::check() const {
 }
 
 namespace {
-/// Sizes are input px; keypoints outside [min_size_px, max_size_px] need not be searched for
-/// (the caller filters).
+/// Sizes are input px; keypoints outside [min_size_px, max_size_px] or away from `roi` (image
+/// px, empty = all) need not be searched for (the caller filters).
 Features extractWhole(const cv::Mat& image, const SiftOptions& opt, double min_size_px = 0,
-                      double max_size_px = 1e30);
+                      double max_size_px = 1e30, const cv::Rect& roi = {});
 }
 
 Features extractSift(const cv::Mat& image, const SiftOptions& opt, const ExtractRegion& region) {
@@ -72,7 +72,7 @@ Features extractSiftUnchecked(const cv::Mat& image, const SiftOptions& opt, cons
   const int x0 = std::max(0, (roi.x - margin) / 32 * 32), y0 = std::max(0, (roi.y - margin) / 32 * 32);
   const cv::Rect crop = cv::Rect(x0, y0, roi.x + roi.width + margin - x0,
                                  roi.y + roi.height + margin - y0) & full;
-  Features c = extractWhole(image(crop), opt, region.min_size_px, region.max_size_px);
+  Features c = extractWhole(image(crop), opt, region.min_size_px, region.max_size_px, roi - crop.tl());
   f.descriptors.create(0, 128, CV_32F);
   for (int i = 0; i < c.size(); ++i) {
     cv::KeyPoint kp = c.keypoints[i];
@@ -89,7 +89,7 @@ Features extractSiftUnchecked(const cv::Mat& image, const SiftOptions& opt, cons
 
 namespace {
 Features extractWhole(const cv::Mat& image, const SiftOptions& opt, double min_size_px,
-                      double max_size_px) {
+                      double max_size_px, const cv::Rect& roi) {
   cv::Mat gray;
   if (image.channels() == 3) {
     cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
@@ -124,6 +124,9 @@ Features extractWhole(const cv::Mat& image, const SiftOptions& opt, double min_s
     const double to_work = opt.upsample ? 1.0 : 0.5;  // work-image px per input px
     call.min_size = min_size_px * to_work;
     call.max_size = max_size_px * to_work;
+    if (roi.area() > 0)
+      call.roi = cv::Rect(cvFloor(roi.x * to_work), cvFloor(roi.y * to_work), cvCeil(roi.width * to_work) + 1,
+                          cvCeil(roi.height * to_work) + 1);
     fastSiftDetectAndCompute(work, opt, call, &kps, &desc);
   } else {
     auto sift = cv::SIFT::create(opt.max_features, opt.octave_layers, opt.contrast_threshold,

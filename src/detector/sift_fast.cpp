@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
+#include <functional>
 #include <ctime>
 #include <memory>
 #include <numeric>
@@ -96,23 +97,24 @@ struct FreeDeleter {
   void operator()(void* p) const { std::free(p); }
 };
 
-/// Grow-only 64-byte-aligned float buffer: reused across calls, so that a frame neither
+/// Grow-only 64-byte-aligned buffer of T: reused across calls, so that a frame neither
 /// allocates nor page-faults once the first one has run.
+template <class T>
 class Buffer {
  public:
-  float* get(size_t floats) {
-    if (floats > size_) {
-      const size_t bytes = (floats * sizeof(float) + 63) / 64 * 64;
-      data_.reset(static_cast<float*>(std::aligned_alloc(64, bytes)));
+  T* get(size_t count) {
+    if (count > size_) {
+      const size_t bytes = (count * sizeof(T) + 63) / 64 * 64;
+      data_.reset(static_cast<T*>(std::aligned_alloc(64, bytes)));
       if (!data_) throw std::bad_alloc();
-      size_ = bytes / sizeof(float);
+      size_ = bytes / sizeof(T);
     }
     return data_.get();
   }
   size_t size() const { return size_; }
 
  private:
-  std::unique_ptr<float, FreeDeleter> data_;
+  std::unique_ptr<T, FreeDeleter> data_;
   size_t size_ = 0;
 };
 
@@ -133,21 +135,36 @@ Kernel gaussianKernel(double sigma) {
   return k;
 }
 
-/// One octave of the Gaussian scale space: `layers` planes of w x h floats. Rows carry `pad`
-/// floats of BORDER_REFLECT_101 copies on each side (the next blur reads them) plus slack for
-/// the vector kernels' over-reads.
+/// One octave of the Gaussian scale space, as the later stages read it: the layers where
+/// keypoints live (1..n_layers, w x h floats, OpenCV's values) for the gradient windows and the
+/// next octave's base; the other layers and the DoG exist only as the sweep's rows in flight.
+/// Rows carry `pad` floats of BORDER_REFLECT_101 copies on each side (the next blur reads them)
+/// plus slack for the vector kernels' over-reads.
 struct Octave {
   int w = 0, h = 0, stride = 0, pad = 0;
-  std::vector<float*> g;
+  std::vector<float*> g;  ///< per layer; null for the layers not kept
   /// Unique per octave and call (gradient windows cached in per-thread scratch are keyed by it).
   uint64_t generation = 0;
   float* row(int layer, int y) const { return g[layer] + static_cast<ptrdiff_t>(y) * stride; }
-  float at(int layer, int y, int x) const { return row(layer, y)[x]; }
-  /// DoG layer `layer` (= g[layer + 1] - g[layer]) as the sweep computed it.
-  float dog(int layer, int y, int x) const { return at(layer + 1, y, x) - at(layer, y, x); }
 };
 
-/// BORDER_REFLECT_101 copies in the `pad` floats left (left = true) or right of a row.
+/// The DoG rows the sweep keeps, a ring of `depth` rows per layer, and the window of rows (and
+/// columns) they hold at a given moment, for the interpolation.
+struct DogView {
+  const float* ring = nullptr;  ///< layer k, row y: ring + (k * depth + y mod depth) * stride
+  int depth = 0, stride = 0, w = 0, h = 0;
+  int row_lo = 0, row_hi = -1;  ///< rows held (inclusive)
+  int col_lo = 0, col_hi = 0;   ///< columns [col_lo, col_hi) held
+  const float* row(int k, int y) const {
+    return ring + (static_cast<size_t>(k) * depth + static_cast<size_t>(y & (depth - 1))) * stride;
+  }
+  /// DoG layer k (= Gaussian layer k + 1 - layer k), as cv::SIFT's dog_pyr.
+  float dog(int k, int y, int x) const { return row(k, y)[x]; }
+  /// The 3x3x3 neighbourhood of (r, c) is held.
+  bool holds(int r, int c) const { return r - 1 >= row_lo && r + 1 <= row_hi && c - 1 >= col_lo && c + 1 < col_hi; }
+};
+
+/// BORDER_REFLECT_101 copies in the `pad` samples left (left = true) or right of a row.
 void fillPad(float* row, int w, int pad, bool left) {
   if (w > pad) {
     if (left) {
@@ -221,9 +238,16 @@ Params makeParams(const SiftOptions& opt) {
   return p;
 }
 
+/// The keypoints (and, without a strongest-N cut, descriptors) of one chunk of extrema.
+struct KeypointPart {
+  std::vector<Kp> kps;
+  std::vector<float> desc;  ///< 128 per keypoint when descriptors are computed with them
+};
+
 /// Per-thread memory, reused from one call to the next.
 struct Workspace {
-  Buffer pyramid, rings, dog, temp;
+  std::vector<KeypointPart> parts;
+  Buffer<float> pyramid, rings, dog_rows, maxmin, temp;
   std::vector<Octave> octaves;
   std::vector<Candidate> candidates;
   std::vector<int32_t> cols;
@@ -239,7 +263,7 @@ Workspace& workspace() {
 
 /// Per-thread scratch of the keypoint stages.
 struct KeypointScratch {
-  Buffer weights, gauss, sum;
+  Buffer<float> weights, gauss, sum;
   /// The descriptor's slots, zero between calls (the kernel clears what it reads).
   float* slots() {
     if (!slots_) {
@@ -249,12 +273,12 @@ struct KeypointScratch {
     }
     return slots_;
   }
-  Buffer slot_buf_;
+  Buffer<float> slot_buf_;
   float* slots_ = nullptr;
   std::vector<int32_t> index;
   std::vector<uint32_t> bits;
   /// The last gradient window (gradientPatch) and what it covers.
-  Buffer patch_mag, patch_ori;
+  Buffer<float> patch_mag, patch_ori;
   size_t patch_zeroed = 0;
   si::GradientPatch patch;
   uint64_t patch_generation = 0;  ///< Octave::generation of the window's pyramid
@@ -265,164 +289,6 @@ struct KeypointScratch {
 KeypointScratch& keypointScratch() {
   thread_local KeypointScratch s;
   return s;
-}
-
-// ------------------------------------------------------------------------------------------------
-// Scale space.
-
-/// Builds layers 0..n_build-1 of octave `o` in top-to-bottom sweeps over vertical strips,
-/// kBlock rows at a time; when `detect`, also the DoG rows and the extremum test of layers
-/// 1..n_layers (candidates appended to *cands). Octave 0 starts from the 8-bit input (doubled,
-/// then blurred by params.init); octave o > 0 from every second pixel of layer n_layers of octave
-/// o-1. Strips keep the rows in flight (the wavefront's lag times the layers) in L2: layer i of a
-/// strip is computed on the strip widened by the columns the later layers read (their kernels'
-/// half-widths, plus 1 for the DoG's 3-tap max/min), so every pixel gets the same arithmetic as
-/// in one full-width sweep.
-void sweepOctave(const si::Kernels& K, const Params& P, int o, const cv::Mat& input,
-                 const Octave* prev, Octave& oct, int n_build, bool detect, Workspace& ws,
-                 std::vector<Candidate>* cands) {
-  constexpr int kBlock = 4;         // rows per step: the column filter makes 4 rows from 2h + 4
-  constexpr int kStripWidth = 512;  // columns per strip (the last one takes the rest)
-  const int W = oct.w, H = oct.h, S = oct.stride;
-  const int L = n_build;
-  // Layer i makes block b - lag[i] at step b: by then layer i-1 has rows up to its last row + h_i.
-  std::vector<int> lag(L), halo(L, 0), ring_size(L, 0);
-  std::vector<const Kernel*> kern(L, nullptr);
-  if (o == 0) kern[0] = &P.init;
-  for (int i = 1; i < L; ++i) kern[i] = &P.kernels[i];
-  int max_h = 0;
-  for (int i = 0; i < L; ++i) {
-    const int h = kern[i] ? kern[i]->h : 0;
-    lag[i] = (i == 0 ? 0 : lag[i - 1]) + (h + kBlock - 1) / kBlock;
-    if (kern[i]) ring_size[i] = std::min(2 * h + kBlock, H);
-    max_h = std::max(max_h, h);
-  }
-  for (int i = L - 2; i >= 0; --i) halo[i] = halo[i + 1] + kern[i + 1]->h;
-  if (detect)
-    for (int& v : halo) v += 1;
-  size_t ring_floats = 0;
-  std::vector<size_t> ring_off(L, 0);
-  for (int i = 0; i < L; ++i) {
-    ring_off[i] = ring_floats;
-    ring_floats += static_cast<size_t>(ring_size[i]) * S;
-  }
-  float* const rings = ws.rings.get(ring_floats + 64);
-  // The doubled input rows, blended and padded for the init blur (octave 0 only).
-  const int up_pad = roundUp(std::max(P.init.h, 1), 16);
-  float* const up_row = ws.temp.get(static_cast<size_t>(W + 2 * up_pad + 64) + input.cols + 64);
-  float* const blend = up_row + W + 2 * up_pad + 32;
-  // DoG rows (d, 3-tap max, 3-tap min) of every DoG layer, in a ring of 8 rows: DoG rows up to
-  // y + 1 exist when the extremum test of row y runs (right after the last layer's block).
-  constexpr int kDogRing = 8;
-  const int n_dog = detect ? L - 1 : 0;
-  // 16 floats ahead of the first row: dog_row writes d[-1].
-  float* const dogs = detect ? ws.dog.get(static_cast<size_t>(n_dog) * 3 * kDogRing * S + 64) + 16 : nullptr;
-  auto dslot = [&](int k, int y, int which) {
-    return dogs + (static_cast<size_t>(k * 3 + which) * kDogRing + (y % kDogRing)) * S;
-  };
-  std::vector<const float*> rows(2 * max_h + kBlock);
-  float* outs[kBlock];
-  const float thr = static_cast<float>(P.threshold);
-  if (detect) ws.cols.resize(W + 32);
-
-  const int n_strips = std::max(1, (W + kStripWidth / 2) / kStripWidth);
-  for (int strip = 0; strip < n_strips; ++strip) {
-    const int sx0 = strip * kStripWidth, sx1 = strip + 1 == n_strips ? W : sx0 + kStripWidth;
-    // Columns [c0[i], c1[i]) of layer i; c0 a multiple of 16 for aligned vector access.
-    std::vector<int> c0(L), c1(L), filled(L, 0);
-    for (int i = 0; i < L; ++i) {
-      c0[i] = std::max(0, sx0 - halo[i]) / 16 * 16;
-      c1[i] = std::min(W, sx1 + halo[i]);
-    }
-    auto sourceRow = [&](int i, int m) -> const float* {
-      if (i > 0) return oct.row(i - 1, m);
-      // Octave 0, layer 0: row m of the doubled input (OpenCV's bilinear resize coefficients),
-      // the columns the init blur reads.
-      const int hin = input.rows, q = m / 2;
-      int r0 = q, r1 = q;
-      float wa = 1.f, wb = 0.f;
-      if (m % 2 == 0 && q > 0) {
-        r0 = q - 1;
-        wa = 0.25f;
-        wb = 0.75f;
-      } else if (m % 2 == 1 && q < hin - 1) {
-        r1 = q + 1;
-        wa = 0.75f;
-        wb = 0.25f;
-      }
-      float* out = up_row + up_pad;
-      const int h = P.init.h;
-      const int u0 = std::max(0, c0[0] - h) / 2, u1 = std::min(input.cols, (c1[0] + h + 1) / 2 + 1);
-      K.upsample_row(input.ptr<uint8_t>(r0), input.ptr<uint8_t>(r1), wa, wb, blend + 16, out, input.cols,
-                     u0, u1);
-      if (c0[0] - h < 0) fillPad(out, W, up_pad, true);
-      if (c1[0] + h > W) fillPad(out, W, up_pad, false);
-      return out;
-    };
-    const int n_blocks = (H + kBlock - 1) / kBlock;
-    int tested = kBorder;  // next row of the extremum test
-    const int tx0 = std::max(kBorder, sx0), tx1 = std::min(W - kBorder, sx1);
-    const int dx0 = std::max(0, sx0 - 1) / 16 * 16, dx1 = std::min(W, sx1 + 1);
-    for (int step = 0; step < n_blocks + lag[L - 1]; ++step) {
-      for (int i = 0; i < L; ++i) {
-        const int y0 = (step - lag[i]) * kBlock;
-        if (y0 < 0 || y0 >= H) continue;
-        const int y1 = std::min(H, y0 + kBlock);
-        const int x0 = c0[i], n = c1[i] - c0[i];
-        if (!kern[i]) {  // octave o > 0, layer 0: subsample
-          for (int y = y0; y < y1; ++y) {
-            const float* src = prev->row(P.n_layers, 2 * y);
-            float* dst = oct.row(i, y);
-            for (int x = x0; x < c1[i]; ++x) dst[x] = src[2 * x];
-            if (x0 == 0) fillPad(dst, W, oct.pad, true);
-            if (c1[i] == W) fillPad(dst, W, oct.pad, false);
-          }
-          continue;
-        }
-        const Kernel& k = *kern[i];
-        float* ring = rings + ring_off[i];
-        const int need = std::min(H - 1, y1 - 1 + k.h);
-        while (filled[i] <= need) {
-          const int m = filled[i]++;
-          K.row_filter(sourceRow(i, m) + x0 - k.h, ring + static_cast<size_t>(m % ring_size[i]) * S + x0, n,
-                       k.taps.data(), k.n);
-        }
-        for (int j = 0; j < 2 * k.h + (y1 - y0); ++j)
-          rows[j] = ring + static_cast<size_t>(reflect101(y0 + j - k.h, H) % ring_size[i]) * S + x0;
-        for (int y = y0; y < y1; ++y) outs[y - y0] = oct.row(i, y) + x0;
-        K.col_filter(rows.data(), outs, y1 - y0, n, k.centre.data(), k.h);
-        for (int y = y0; y < y1; ++y) {
-          if (x0 == 0) fillPad(oct.row(i, y), W, oct.pad, true);
-          if (c1[i] == W) fillPad(oct.row(i, y), W, oct.pad, false);
-        }
-      }
-      if (!detect) continue;
-      // The last layer's newest block: its DoG rows, then the extremum test of the rows whose
-      // 3x3x3 neighbourhoods are now complete.
-      const int y0 = (step - lag[L - 1]) * kBlock;
-      if (y0 < 0 || y0 >= H) continue;
-      const int y1 = std::min(H, y0 + kBlock);
-      for (int y = y0; y < y1; ++y)
-        for (int k = 0; k < n_dog; ++k)
-          K.dog_row(oct.row(k, y) + dx0, oct.row(k + 1, y) + dx0, dslot(k, y, 0) + dx0, dslot(k, y, 1) + dx0,
-                    dslot(k, y, 2) + dx0, dx1 - dx0);
-      for (; tested < std::min(y1 - 1, H - kBorder); ++tested) {
-        const int yy = tested;
-        if (tx0 >= tx1) continue;
-        for (int layer = 1; layer <= P.n_layers; ++layer) {
-          const float* mx[9];
-          const float* mn[9];
-          for (int a = 0; a < 3; ++a)
-            for (int b = 0; b < 3; ++b) {
-              mx[3 * a + b] = dslot(layer - 1 + a, yy - 1 + b, 1);
-              mn[3 * a + b] = dslot(layer - 1 + a, yy - 1 + b, 2);
-            }
-          const int n = K.extrema_row(dslot(layer, yy, 0), mx, mn, tx0, tx1, thr, ws.cols.data());
-          for (int q = 0; q < n; ++q) cands->push_back({layer, yy, ws.cols[q]});
-        }
-      }
-    }
-  }
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -452,10 +318,11 @@ struct Derivatives {
   float dxx, dyy, dss, dxy, dxs, dys;
 };
 
-Derivatives derivatives(const Octave& oct, int layer, int r, int c) {
+/// D(l, y, x): the DoG value of layer l at row y, column x.
+template <class Dog>
+Derivatives derivatives(const Dog& D, int layer, int r, int c) {
   const float img_scale = 1.f / 255;
   const float deriv_scale = img_scale * 0.5f, second_scale = img_scale, cross_scale = img_scale * 0.25f;
-  auto D = [&](int l, int y, int x) { return oct.dog(l, y, x); };
   Derivatives d;
   d.dD[0] = (D(layer, r, c + 1) - D(layer, r, c - 1)) * deriv_scale;
   d.dD[1] = (D(layer, r + 1, c) - D(layer, r - 1, c)) * deriv_scale;
@@ -473,13 +340,38 @@ Derivatives derivatives(const Octave& oct, int layer, int r, int c) {
   return d;
 }
 
-/// adjustLocalExtrema: up to 5 Newton steps, then the contrast and edge tests.
-bool interpolate(const Octave& oct, const Params& P, int o, Candidate cand, Extremum* out) {
+/// The DoG values of layers layer-1..layer+1, rows r-1..r+1, columns c-1..c+1 (cube[l][y][x]),
+/// for a point the sweep's rows no longer (or do not yet) hold.
+struct DogCube {
+  int layer = 0, r = 0, c = 0;
+  float v[3][3][3];
+  float operator()(int l, int y, int x) const { return v[l - layer + 1][y - r + 1][x - c + 1]; }
+};
+
+enum class Interpolated { kKept, kRejected };
+
+/// adjustLocalExtrema: up to 5 Newton steps, then the contrast and edge tests, on the DoG rows the
+/// sweep holds; `exact(layer, r, c, &cube)` gives the DoG around a point they do not (such
+/// steps counted in *outside).
+template <class ExactDog>
+Interpolated interpolate(const DogView& view, const ExactDog& exact, const Params& P, int o, Candidate cand,
+                         Extremum* out, int* outside) {
   int layer = cand.layer, r = cand.r, c = cand.c;
   float xi = 0, xr = 0, xc = 0;
+  DogCube cube;
+  bool held = true;
+  auto at = [&](int l, int y, int x) { return held ? view.dog(l, y, x) : cube(l, y, x); };
+  auto look = [&] {  // the DoG around (layer, r, c)
+    held = view.holds(r, c);
+    if (!held) {
+      exact(layer, r, c, &cube);
+      ++*outside;
+    }
+  };
   int step = 0;
   for (; step < kMaxInterpSteps; ++step) {
-    const Derivatives d = derivatives(oct, layer, r, c);
+    look();
+    const Derivatives d = derivatives(at, layer, r, c);
     const float Hm[3][3] = {{d.dxx, d.dxy, d.dxs}, {d.dxy, d.dyy, d.dys}, {d.dxs, d.dys, d.dss}};
     float X[3] = {0, 0, 0};
     if (!solve3(Hm, d.dD, X)) X[0] = X[1] = X[2] = 0;
@@ -488,32 +380,306 @@ bool interpolate(const Octave& oct, const Params& P, int o, Candidate cand, Extr
     xc = -X[0];
     if (std::abs(xi) < 0.5f && std::abs(xr) < 0.5f && std::abs(xc) < 0.5f) break;
     const float big = static_cast<float>(INT_MAX / 3);
-    if (std::abs(xi) > big || std::abs(xr) > big || std::abs(xc) > big) return false;
+    if (std::abs(xi) > big || std::abs(xr) > big || std::abs(xc) > big) return Interpolated::kRejected;
     c += cvRoundF(xc);
     r += cvRoundF(xr);
     layer += cvRoundF(xi);
-    if (layer < 1 || layer > P.n_layers || c < kBorder || c >= oct.w - kBorder || r < kBorder ||
-        r >= oct.h - kBorder)
-      return false;
+    if (layer < 1 || layer > P.n_layers || c < kBorder || c >= view.w - kBorder || r < kBorder ||
+        r >= view.h - kBorder)
+      return Interpolated::kRejected;
   }
-  if (step >= kMaxInterpSteps) return false;
+  if (step >= kMaxInterpSteps) return Interpolated::kRejected;
 
-  const Derivatives d = derivatives(oct, layer, r, c);
+  const Derivatives d = derivatives(at, layer, r, c);
   const float t = d.dD[0] * xc + d.dD[1] * xr + d.dD[2] * xi;
-  const float contr = oct.dog(layer, r, c) * (1.f / 255) + t * 0.5f;
-  if (std::abs(contr) * P.n_layers < P.contrast) return false;
+  const float contr = at(layer, r, c) * (1.f / 255) + t * 0.5f;
+  if (std::abs(contr) * P.n_layers < P.contrast) return Interpolated::kRejected;
   const float tr = d.dxx + d.dyy;
   const float det = d.dxx * d.dyy - d.dxy * d.dxy;
-  if (det <= 0 || tr * tr * P.edge >= (P.edge + 1) * (P.edge + 1) * det) return false;
+  if (det <= 0 || tr * tr * P.edge >= (P.edge + 1) * (P.edge + 1) * det) return Interpolated::kRejected;
   *out = {o, layer, r, c, xc, xr, xi, contr};
-  return true;
+  return Interpolated::kKept;
+}
+
+// ------------------------------------------------------------------------------------------------
+// Scale space.
+
+/// Row m of the doubled image, OpenCV's bilinear resize: wa * input row r0 + wb * input row r1.
+struct DoubledRow {
+  int r0, r1;
+  float wa, wb;
+};
+
+DoubledRow doubledRow(int m, int input_rows) {
+  const int q = m / 2;
+  if (m % 2 == 0 && q > 0) return {q - 1, q, 0.25f, 0.75f};
+  if (m % 2 == 1 && q < input_rows - 1) return {q, q + 1, 0.75f, 0.25f};
+  return {q, q, 1.f, 0.f};
+}
+
+/// Builds layers 0..n_build-1 of octave `o` in top-to-bottom sweeps over vertical strips,
+/// kBlock rows at a time, with OpenCV's arithmetic. Layers 1..n_layers are stored (Octave); the
+/// others are kept as rings of their newest rows (the next layer's filter and the DoG read them).
+/// When `detect`, also the DoG rows (a ring), their extremum test at layers 1..n_layers in
+/// `test_area` (octave px) and the interpolation of the candidates found (counted in
+/// *candidates; extrema appended to *found; Newton steps at points out of the DoG rows and
+/// columns still held run on exactly recomputed patches, counted in *far_steps). Octave 0 starts
+/// from the 8-bit input (doubled, then blurred by params.init), octave o > 0 from every second
+/// pixel of layer n_layers of `prev`. Strips keep the rows in flight (the wavefront's lag times
+/// the layers) in L2: layer i of a strip is computed on the strip widened by the columns the later
+/// layers read (their kernels' half-widths, plus, for the DoG, the 3-tap max/min and the
+/// interpolation's moves), so every pixel gets the same arithmetic as in one full-width sweep.
+void sweepOctave(const si::Kernels& K, const Params& P, int o, const cv::Mat& input, const Octave* prev,
+                 Octave& oct, int n_build, bool detect, const cv::Rect& test_area, Workspace& ws,
+                 std::vector<Extremum>* found, int* far_steps, int* candidates) {
+  constexpr int kBlock = 4;         // rows per step: the column filter makes 4 rows from 2h + 4
+  constexpr int kStripWidth = 512;  // columns per strip (the last one takes the rest)
+  // The interpolation runs kReach rows behind the extremum test, on DoG rows still held: a
+  // Newton step may move a candidate that far (columns too: the strips' halos grow by it).
+  constexpr int kReach = 8;
+  const int W = oct.w, H = oct.h, S = oct.stride;
+  const int L = n_build;
+  // Layer i makes block b - lag[i] at step b: by then layer i-1 has rows up to its last row + h_i.
+  std::vector<int> lag(L), halo(L, 0), ring_size(L, 0), keep(L, 0);
+  std::vector<const Kernel*> kern(L, nullptr);
+  if (o == 0) kern[0] = &P.init;
+  for (int i = 1; i < L; ++i) kern[i] = &P.kernels[i];
+  int max_h = 0;
+  for (int i = 0; i < L; ++i) {
+    const int h = kern[i] ? kern[i]->h : 0;
+    lag[i] = (i == 0 ? 0 : lag[i - 1]) + (h + kBlock - 1) / kBlock;
+    if (kern[i]) ring_size[i] = std::min(2 * h + kBlock, H);
+    max_h = std::max(max_h, h);
+  }
+  for (int i = L - 2; i >= 0; --i) halo[i] = halo[i + 1] + kern[i + 1]->h;
+  if (detect)
+    for (int& v : halo) v += 1 + kReach;
+  // Rows of the layers not stored: a row of layer i is read by layer i + 1's row filter right
+  // after it is made and by the DoG when the last layer makes that row, kBlock * (lag[L - 1] -
+  // lag[i]) rows later.
+  for (int i = 0; i < L; ++i) {
+    if (oct.g[i]) continue;
+    keep[i] = 8;
+    while (keep[i] < kBlock * (lag[L - 1] - lag[i] + 2)) keep[i] *= 2;
+  }
+  size_t ring_samples = 0;
+  std::vector<size_t> ring_off(L, 0);
+  for (int i = 0; i < L; ++i) {
+    ring_off[i] = ring_samples;
+    ring_samples += static_cast<size_t>(ring_size[i] + keep[i]) * S;
+  }
+  float* const rings = ws.rings.get(ring_samples + 128) + oct.pad;
+  auto frow = [&](int i, int y) -> float* {  // layer i, row y
+    if (oct.g[i]) return oct.row(i, y);
+    return rings + ring_off[i] + static_cast<size_t>(ring_size[i] + (y & (keep[i] - 1))) * S;
+  };
+  // The doubled input rows, blended and padded for the init blur (octave 0 only).
+  const int up_pad = roundUp(std::max(P.init.h, 1), 16);
+  float* const up_row = ws.temp.get(static_cast<size_t>(W + 2 * up_pad + 64) + input.cols + 64);
+  float* const blend = up_row + W + 2 * up_pad + 32;
+  // DoG rows (a ring of `depth` rows per layer, made when the last layer makes the row) and their
+  // 3-tap max/min (a ring of 8 rows: rows up to y + 1 exist when the extremum test of row y runs).
+  const int n_dog = detect ? L - 1 : 0;
+  int depth = 16;
+  while (depth < 2 * kReach + 2 * kBlock + 4) depth *= 2;
+  DogView view;
+  view.depth = depth;
+  view.stride = S;
+  view.w = W;
+  view.h = H;
+  // 16 floats ahead of the first row: dog_row writes d[-1].
+  view.ring = detect ? ws.dog_rows.get(static_cast<size_t>(n_dog) * depth * S + 64) + 16 : nullptr;
+  auto drow = [&](int k, int y) { return const_cast<float*>(view.row(k, y)); };
+  constexpr int kMaxMinRing = 8;
+  float* const maxmin =
+      detect ? ws.maxmin.get(static_cast<size_t>(n_dog) * 2 * kMaxMinRing * S + 64) : nullptr;
+  auto mslot = [&](int k, int y, int which) {
+    return maxmin + (static_cast<size_t>(k * 2 + which) * kMaxMinRing + (y % kMaxMinRing)) * S;
+  };
+  std::vector<const float*> rows(2 * max_h + kBlock);
+  float* outs[kBlock];
+  const float thr = static_cast<float>(P.threshold);
+  if (detect) ws.cols.resize(W + 32);
+  std::vector<Candidate>& pending = ws.candidates;
+
+  // The exact values of layer i on rows [y0, y1], columns [x0, x1] (inside the octave), for a
+  // point the rings do not hold (a Newton step that jumped far; rare): recomputed on a patch with
+  // the sweep's kernels, from the nearest whole layer (stored, the octave below, the input), each
+  // output with the same arithmetic as in the sweep.
+  std::function<std::vector<float>(int, int, int, int, int)> patch = [&](int i, int y0, int y1, int x0,
+                                                                          int x1) {
+    const int pw = x1 - x0 + 1, ph = y1 - y0 + 1;
+    std::vector<float> out(static_cast<size_t>(ph) * pw + 64);
+    if (oct.g[i] || !kern[i]) {
+      for (int y = y0; y <= y1; ++y)
+        for (int x = x0; x <= x1; ++x)
+          out[static_cast<size_t>(y - y0) * pw + x - x0] =
+              oct.g[i] ? oct.row(i, y)[x] : prev->row(P.n_layers, 2 * y)[2 * x];
+      return out;
+    }
+    const Kernel& k = *kern[i];
+    const int h = k.h;
+    const int sy0 = std::max(0, y0 - h), sy1 = std::min(H - 1, y1 + h);
+    const int sx0 = std::max(0, x0 - h), sx1 = std::min(W - 1, x1 + h), sw = sx1 - sx0 + 1;
+    std::vector<float> src;
+    if (i > 0) {
+      src = patch(i - 1, sy0, sy1, sx0, sx1);
+    } else {  // octave 0, layer 0: the doubled input rows
+      src.assign(static_cast<size_t>(sy1 - sy0 + 1) * sw + 64, 0.f);
+      std::vector<float> full(static_cast<size_t>(W) + 64), blend_row(static_cast<size_t>(input.cols) + 64);
+      for (int m = sy0; m <= sy1; ++m) {
+        const DoubledRow d = doubledRow(m, input.rows);
+        K.upsample_row(input.ptr<uint8_t>(d.r0), input.ptr<uint8_t>(d.r1), d.wa, d.wb, blend_row.data() + 16,
+                       full.data(), input.cols, 0, input.cols);
+        std::copy(full.begin() + sx0, full.begin() + sx1 + 1, src.begin() + static_cast<size_t>(m - sy0) * sw);
+      }
+    }
+    // Row filter on the source rows (BORDER_REFLECT_101 at the octave's sides), then the column
+    // filter (the same at its top and bottom).
+    std::vector<float> ext(static_cast<size_t>(pw) + 2 * h + 64);
+    std::vector<float> rf(static_cast<size_t>(sy1 - sy0 + 1) * (pw + 64));
+    for (int y = sy0; y <= sy1; ++y) {
+      for (int t = 0; t < pw + 2 * h; ++t)
+        ext[t] = src[static_cast<size_t>(y - sy0) * sw + reflect101(x0 - h + t, W) - sx0];
+      K.row_filter(ext.data(), rf.data() + static_cast<size_t>(y - sy0) * (pw + 64), pw, k.taps.data(), k.n);
+    }
+    std::vector<const float*> col(2 * h + 1);
+    std::vector<float> line(static_cast<size_t>(pw) + 64);
+    for (int y = y0; y <= y1; ++y) {
+      for (int j = 0; j <= 2 * h; ++j)
+        col[j] = rf.data() + static_cast<size_t>(reflect101(y - h + j, H) - sy0) * (pw + 64);
+      float* o1 = line.data();
+      K.col_filter(col.data(), &o1, 1, pw, k.centre.data(), h);
+      std::copy(line.begin(), line.begin() + pw, out.begin() + static_cast<size_t>(y - y0) * pw);
+    }
+    return out;
+  };
+  auto exact = [&](int layer, int r, int c, DogCube* cube) {
+    cube->layer = layer;
+    cube->r = r;
+    cube->c = c;
+    std::vector<float> g[4];
+    for (int l = 0; l < 4; ++l) g[l] = patch(layer - 1 + l, r - 1, r + 1, c - 1, c + 1);
+    for (int l = 0; l < 3; ++l)
+      for (int k = 0; k < 9; ++k) cube->v[l][k / 3][k % 3] = g[l + 1][k] - g[l][k];
+  };
+
+  const int n_strips = std::max(1, (W + kStripWidth / 2) / kStripWidth);
+  for (int strip = 0; strip < n_strips; ++strip) {
+    const int sx0 = strip * kStripWidth, sx1 = strip + 1 == n_strips ? W : sx0 + kStripWidth;
+    // Columns [c0[i], c1[i]) of layer i: each reads columns [c0[i] - h, c1[i] + h) of layer i - 1,
+    // which this strip has made (the halos), so every column made is exact. (Not rounded to a
+    // vector boundary: the columns below c0 of a layer kept as a ring were not made here.)
+    std::vector<int> c0(L), c1(L), filled(L, 0);
+    for (int i = 0; i < L; ++i) {
+      c0[i] = std::max(0, sx0 - halo[i]);
+      c1[i] = std::min(W, sx1 + halo[i]);
+    }
+    auto sourceRow = [&](int i, int m) -> const float* {
+      if (i > 0) return frow(i - 1, m);
+      // Octave 0, layer 0: row m of the doubled input (OpenCV's bilinear resize coefficients),
+      // the columns the init blur reads.
+      const DoubledRow d = doubledRow(m, input.rows);
+      float* out = up_row + up_pad;
+      const int h = P.init.h;
+      const int u0 = std::max(0, c0[0] - h) / 2, u1 = std::min(input.cols, (c1[0] + h + 1) / 2 + 1);
+      K.upsample_row(input.ptr<uint8_t>(d.r0), input.ptr<uint8_t>(d.r1), d.wa, d.wb, blend + 16, out, input.cols,
+                     u0, u1);
+      if (c0[0] - h < 0) fillPad(out, W, up_pad, true);
+      if (c1[0] + h > W) fillPad(out, W, up_pad, false);
+      return out;
+    };
+    const int n_blocks = (H + kBlock - 1) / kBlock;
+    int tested = std::max(kBorder, test_area.y);  // next row of the extremum test
+    const int test_end = std::min(H - kBorder, test_area.y + test_area.height);
+    const int tx0 = std::max({kBorder, sx0, test_area.x});
+    const int tx1 = std::min({W - kBorder, sx1, test_area.x + test_area.width});
+    // The DoG on the last layer's exact columns.
+    const int dx0 = L > 1 ? c0[L - 1] : 0, dx1 = L > 1 ? c1[L - 1] : 0;
+    view.col_lo = dx0;
+    view.col_hi = dx1;
+    pending.clear();
+    size_t next_pending = 0;
+    for (int step = 0; step < n_blocks + lag[L - 1]; ++step) {
+      for (int i = 0; i < L; ++i) {
+        const int y0 = (step - lag[i]) * kBlock;
+        if (y0 < 0 || y0 >= H) continue;
+        const int y1 = std::min(H, y0 + kBlock);
+        const int x0 = c0[i], n = c1[i] - c0[i];
+        if (!kern[i]) {  // octave o > 0, layer 0: subsample
+          for (int y = y0; y < y1; ++y) {
+            const float* src = prev->row(P.n_layers, 2 * y);
+            float* dst = frow(i, y);
+            for (int x = x0; x < c1[i]; ++x) dst[x] = src[2 * x];
+            if (x0 == 0) fillPad(dst, W, oct.pad, true);
+            if (c1[i] == W) fillPad(dst, W, oct.pad, false);
+          }
+          continue;
+        }
+        const Kernel& k = *kern[i];
+        float* ring = rings + ring_off[i];
+        const int need = std::min(H - 1, y1 - 1 + k.h);
+        while (filled[i] <= need) {
+          const int m = filled[i]++;
+          K.row_filter(sourceRow(i, m) + x0 - k.h, ring + static_cast<size_t>(m % ring_size[i]) * S + x0, n,
+                       k.taps.data(), k.n);
+        }
+        for (int j = 0; j < 2 * k.h + (y1 - y0); ++j)
+          rows[j] = ring + static_cast<size_t>(reflect101(y0 + j - k.h, H) % ring_size[i]) * S + x0;
+        for (int y = y0; y < y1; ++y) outs[y - y0] = frow(i, y) + x0;
+        K.col_filter(rows.data(), outs, y1 - y0, n, k.centre.data(), k.h);
+        for (int y = y0; y < y1; ++y) {
+          if (x0 == 0) fillPad(frow(i, y), W, oct.pad, true);
+          if (c1[i] == W) fillPad(frow(i, y), W, oct.pad, false);
+        }
+      }
+      if (!detect) continue;
+      // The last layer's newest block: the DoG rows of every layer and their 3-tap max/min, the
+      // extremum test of the rows whose 3x3x3 neighbourhoods are now complete, then the
+      // interpolation of the candidates kReach rows above.
+      const int y0 = (step - lag[L - 1]) * kBlock;
+      if (y0 < 0 || y0 >= H) continue;
+      const int y1 = std::min(H, y0 + kBlock);
+      for (int y = y0; y < y1; ++y)
+        for (int k = 0; k < n_dog; ++k) {
+          K.dog_row(frow(k, y) + dx0, frow(k + 1, y) + dx0, drow(k, y) + dx0, mslot(k, y, 0) + dx0,
+                    mslot(k, y, 1) + dx0, dx1 - dx0);
+        }
+      for (; tested < std::min(y1 - 1, test_end); ++tested) {
+        const int yy = tested;
+        if (tx0 >= tx1) continue;
+        for (int layer = 1; layer <= P.n_layers; ++layer) {
+          const float* mx[9];
+          const float* mn[9];
+          for (int a = 0; a < 3; ++a)
+            for (int b = 0; b < 3; ++b) {
+              mx[3 * a + b] = mslot(layer - 1 + a, yy - 1 + b, 0);
+              mn[3 * a + b] = mslot(layer - 1 + a, yy - 1 + b, 1);
+            }
+          const int n = K.extrema_row(drow(layer, yy), mx, mn, tx0, tx1, thr, ws.cols.data());
+          for (int q = 0; q < n; ++q) pending.push_back({layer, yy, ws.cols[q]});
+          *candidates += n;
+        }
+      }
+      view.row_hi = y1 - 1;
+      view.row_lo = y1 - depth;
+      const bool last = y1 == H;
+      for (; next_pending < pending.size() && (last || pending[next_pending].r + kReach <= view.row_hi);
+           ++next_pending) {
+        Extremum x;
+        if (interpolate(view, exact, P, o, pending[next_pending], &x, far_steps) == Interpolated::kKept)
+          found->push_back(x);
+      }
+    }
+  }
 }
 
 /// The gradient samples (magnitude, angle) around (r, c) of `layer`, computed into the thread's
 /// scratch (not as whole gradient planes in the sweep: those went to memory and back, and cost
-/// more than computing the windows, which cover part of the image): rows |i| <= radius; in row i the columns |j| <= `square` (|i| <= square) and those
-/// within the disc of radius `disc` (+1 sample; disc = 0: all |j| <= radius). A window is computed
-/// once per spot and reused while it covers what is asked for (orientation, then descriptors).
+/// more than computing the windows, which cover part of the image): rows |i| <= radius; in row i
+/// the columns |j| <= `square` (|i| <= square) and those within the disc of radius `disc` (+1
+/// sample; disc = 0: all |j| <= radius). A window is computed once per spot and reused while it
+/// covers what is asked for (orientation, then descriptors).
 si::GradientPatch gradientPatch(const si::Kernels& K, const Octave& oct, int layer, int r, int c, int radius,
                                 int square, float disc, KeypointScratch& s) {
   const float disc_key = disc > 0 ? disc : 1e30f;
@@ -551,8 +717,8 @@ si::GradientPatch gradientPatch(const si::Kernels& K, const Octave& oct, int lay
     const int ja = std::max(p.j0, -half), jb = std::min(p.j1, half);
     if (ja > jb) continue;
     const ptrdiff_t o = static_cast<ptrdiff_t>(i) * pitch + ja;
-    K.gradient_span(img + static_cast<ptrdiff_t>(r + i) * oct.stride + c + ja, oct.stride, mag + centre + o, ori + centre + o,
-                    jb - ja + 1);
+    K.gradient_span(img + static_cast<ptrdiff_t>(r + i) * oct.stride + c + ja, oct.stride, mag + centre + o,
+                    ori + centre + o, jb - ja + 1);
   }
   s.patch = p;
   s.patch_generation = oct.generation;
@@ -624,9 +790,7 @@ void orientations(const si::Kernels& K, const Params& P, const Octave& oct, cons
   temp[n] = temp[0];
   temp[n + 1] = temp[1];
   float hist[kOriBins];
-  for (int i = 0; i < n; ++i)
-    hist[i] = std::fma(temp[i - 2] + temp[i + 2], 1.f / 16.f,
-                       std::fma(temp[i - 1] + temp[i + 1], 4.f / 16.f, temp[i] * (6.f / 16.f)));
+  K.orientation_smooth(temp, hist, n);
   float omax = hist[0];
   for (int i = 1; i < n; ++i) omax = std::max(omax, hist[i]);
   const float mag_thr = omax * kOriPeakRatio;
@@ -673,21 +837,7 @@ void describeSpot(const si::Kernels& K, const Octave& oct, const Kp* kps, int co
     } else {
       std::fill(raw, raw + kDescrLen, 0.f);
     }
-    float part[16] = {0};
-    for (int b = 0; b < kDescrLen; ++b) part[b % 16] = std::fma(raw[b], raw[b], part[b % 16]);
-    float nrm2 = 0;
-    for (float v : part) nrm2 += v;
-    const float thr = std::sqrt(nrm2) * kDescrMagThr;
-    nrm2 = 0;
-    for (int b = 0; b < kDescrLen; ++b) {
-      const float v = std::min(raw[b], thr);
-      raw[b] = v;
-      nrm2 = std::fma(v, v, nrm2);
-    }
-    nrm2 = kIntDescrFactor / std::max(std::sqrt(nrm2), FLT_EPSILON);
-    float* out = dst[q];
-    for (int b = 0; b < kDescrLen; ++b)
-      out[b] = static_cast<float>(std::clamp(cvRoundF(raw[b] * nrm2), 0, 255));
+    K.descriptor_finish(raw, dst[q]);
   }
 }
 
@@ -768,7 +918,7 @@ void fastSiftDetectAndCompute(const cv::Mat& gray8, const SiftOptions& opt, cons
     oct.h = h;
     oct.pad = pad;
     oct.stride = roundUp(w + 2 * pad + 32, 16);
-    total += static_cast<size_t>(L) * h * oct.stride + 64;
+    total += static_cast<size_t>(P.n_layers) * h * oct.stride + 64;
   }
   float* mem = ws.pyramid.get(total + 64);
   std::vector<bool> search(ws.octaves.size(), true);
@@ -776,10 +926,8 @@ void fastSiftDetectAndCompute(const cv::Mat& gray8, const SiftOptions& opt, cons
     Octave& oct = ws.octaves[o];
     oct.g.assign(L, nullptr);
     oct.generation = ++generation;
-    for (int i = 0; i < L; ++i) {
-      oct.g[i] = mem + pad;
-      mem += static_cast<size_t>(oct.h) * oct.stride;
-    }
+    const size_t plane = static_cast<size_t>(oct.h) * oct.stride;
+    for (int i = 1; i <= P.n_layers; ++i, mem += plane) oct.g[i] = mem + pad;
     mem += 64;
     double lo, hi;
     octaveSizes(o, &lo, &hi);
@@ -797,26 +945,29 @@ void fastSiftDetectAndCompute(const cv::Mat& gray8, const SiftOptions& opt, cons
     if (n_build == 0) continue;
     const auto t0 = Clock::now();
     ws.candidates.clear();
-    sweepOctave(K, P, o, gray8, o > 0 ? &ws.octaves[o - 1] : nullptr, oct, n_build, detect, ws,
-                &ws.candidates);
+    // The extremum test where keypoints are wanted: call.roi (work px) in octave px, widened by 4
+    // px (an extremum can move that far while it is interpolated).
+    cv::Rect test_area(0, 0, oct.w, oct.h);
+    if (call.roi.area() > 0 && prune) {
+      const double to_oct = 2.0 / (1 << o);  // octave 0 is the doubled image
+      const int x0 = static_cast<int>(std::floor(call.roi.x * to_oct)) - 4;
+      const int y0 = static_cast<int>(std::floor(call.roi.y * to_oct)) - 4;
+      const int x1 = static_cast<int>(std::ceil((call.roi.x + call.roi.width) * to_oct)) + 4;
+      const int y1 = static_cast<int>(std::ceil((call.roi.y + call.roi.height) * to_oct)) + 4;
+      test_area = cv::Rect(x0, y0, x1 - x0, y1 - y0) & test_area;
+    }
+    const size_t first = extrema.size();
+    int far_steps = 0, candidates = 0;
+    sweepOctave(K, P, o, gray8, o > 0 ? &ws.octaves[o - 1] : nullptr, oct, n_build, detect && test_area.area() > 0,
+                test_area, ws, &extrema, &far_steps, &candidates);
     const auto t1 = Clock::now();
     stats.scale_space_ms += ms(t0, t1);
     stats.scale_space_cpu_ms += cpuMs(t0, t1);
     ++stats.octaves_built;
     if (!detect) continue;
     ++stats.octaves_searched;
-    const size_t first = extrema.size();
-    const int nc = static_cast<int>(ws.candidates.size());
-    stats.candidates += nc;
-    std::vector<std::vector<Extremum>> parts(std::max(1, (nc + 511) / 512));
-    parallelChunks(nc, threads, 512, [&](int b, int e) {
-      std::vector<Extremum>& part = parts[b / 512];
-      for (int q = b; q < e; ++q) {
-        Extremum x;
-        if (interpolate(oct, P, o, ws.candidates[q], &x)) part.push_back(x);
-      }
-    });
-    for (const auto& part : parts) extrema.insert(extrema.end(), part.begin(), part.end());
+    stats.candidates += candidates;
+    stats.far_steps += far_steps;
     // Several candidates can converge on the same spot: cv::SIFT keeps one (removeDuplicatedSorted).
     std::sort(extrema.begin() + first, extrema.end());
     extrema.erase(std::unique(extrema.begin() + first, extrema.end(),
@@ -836,16 +987,18 @@ void fastSiftDetectAndCompute(const cv::Mat& gray8, const SiftOptions& opt, cons
     const double size = k.kp.size * 0.5f;
     return !size_filter || (size >= call.min_size && size <= call.max_size);
   };
-  struct Part {
-    std::vector<Kp> kps;
-    std::vector<float> desc;  ///< 128 per keypoint when descriptors are computed here
-  };
   const bool fused = opt.max_features == 0;  // no strongest-N cut: describe every keypoint at once
   constexpr int kChunk = 32;
-  std::vector<Part> parts(std::max(1, (ne + kChunk - 1) / kChunk));
+  // Kept from call to call (cleared, not freed): a frame allocates nothing here once warm.
+  std::vector<KeypointPart>& parts = ws.parts;
+  if (parts.size() < static_cast<size_t>((ne + kChunk - 1) / kChunk + 1)) parts.resize((ne + kChunk - 1) / kChunk + 1);
+  for (KeypointPart& part : parts) {
+    part.kps.clear();
+    part.desc.clear();
+  }
   auto t2 = Clock::now();
   parallelChunks(ne, threads, kChunk, [&](int b, int e) {
-    Part& part = parts[b / kChunk];
+    KeypointPart& part = parts[b / kChunk];
     KeypointScratch& s = keypointScratch();
     float* rows[64];
     for (int q = b; q < e; ++q) {
@@ -867,7 +1020,7 @@ void fastSiftDetectAndCompute(const cv::Mat& gray8, const SiftOptions& opt, cons
   });
   std::vector<Kp> kps;
   std::vector<const float*> desc_of;  // fused: each keypoint's descriptor
-  for (const Part& part : parts) {
+  for (const KeypointPart& part : parts) {
     for (size_t i = 0; i < part.kps.size(); ++i) {
       kps.push_back(part.kps[i]);
       if (fused) desc_of.push_back(part.desc.data() + i * kDescrLen);

@@ -32,13 +32,18 @@ const char* siftIsaName(SiftIsa isa);
 /// What one call did and where its time went: wall clock of this call's stages and the calling
 /// thread's CPU time in them (ms; with FastSiftCall::threads = 1 that is all the work).
 struct FastSiftStats {
-  double scale_space_ms = 0;  ///< pyramid + DoG + extremum test (one sweep per octave)
-  double localise_ms = 0;     ///< sub-pixel interpolation, contrast and edge tests, duplicates
+  /// Pyramid, DoG, extremum test, sub-pixel interpolation with the contrast and edge tests (one
+  /// sweep per octave).
+  double scale_space_ms = 0;
+  double localise_ms = 0;     ///< duplicates removed (the interpolation runs in the sweep)
   double describe_ms = 0;     ///< gradient windows, orientation histograms and descriptors
   double output_ms = 0;       ///< sort strongest first, cut to max_features, copy out
   double scale_space_cpu_ms = 0, localise_cpu_ms = 0, describe_cpu_ms = 0, output_cpu_ms = 0;
   int octaves_built = 0, octaves_searched = 0;
   int candidates = 0, extrema = 0, keypoints = 0;
+  /// Interpolation steps at points the sweep's DoG rows no longer (or not yet) held: a Newton
+  /// step that jumped far; their DoG is recomputed exactly on a small patch.
+  int far_steps = 0;
 };
 
 struct FastSiftCall {
@@ -51,6 +56,10 @@ struct FastSiftCall {
   /// outside the range are skipped. Ignored (everything searched) when opt.max_features > 0, so
   /// that the strongest-N cut sees the same keypoints as cv::SIFT does.
   double min_size = 0, max_size = 1e30;
+  /// When not empty: keypoints are only searched for around this region (work-image px, the
+  /// extremum test runs in it widened by 4 octave px); the scale space is still computed on the whole
+  /// image (the caller crops it first). Ignored, as the size range, when opt.max_features > 0.
+  cv::Rect roi;
   FastSiftStats* stats = nullptr;  ///< filled when not null
 };
 

@@ -88,11 +88,17 @@ struct Kernels {
   /// gauss: scratch of 2 x radius + 48 floats.
   void (*orientation_hist)(const GradientPatch& p, int radius, float sigma, int n, float* hist,
                            float* gauss);
+  /// OpenCV's smoothing of the orientation histogram: temp[-2 .. n+1] (the n bins and their
+  /// wrapped neighbours) -> hist[0 .. n-1].
+  void (*orientation_smooth)(const float* temp, float* hist, int n);
   /// OpenCV's raw descriptor histogram (before the 0.2 clip and normalisation) in its order:
   /// raw[(row * 4 + col) * 8 + bin], 128 floats; cos_t, sin_t are cos/sin of the descriptor
   /// angle divided by the histogram width; ori_deg the descriptor angle in degrees.
   void (*descriptor_hist)(const GradientPatch& p, int radius, float cos_t, float sin_t,
                           float ori_deg, const DescriptorScratch& s, float* raw);
+  /// OpenCV's descriptor from the raw histogram (128 floats, clipped in place): 0.2 clip,
+  /// normalisation to 512, rounded and clamped to 0..255, as floats in out.
+  void (*descriptor_finish)(float* raw, float* out);
 };
 
 const Kernels& scalarKernels();

@@ -58,8 +58,9 @@ template <int C>
 inline void rowFilterVectors(const float* s, float* out, const float* k, int n) {
   constexpr int N = V::N;
   V::F a[C];
-  for (V::F& v : a) v = V::set1(0.f);
-  int j = 0;
+  const V::F first = V::set1(k[0]);
+  for (int q = 0; q < C; ++q) a[q] = V::mul(V::load(s + q * N), first);
+  int j = 1;
   for (; j + 1 < n; j += 2) {
     const V::F k0 = V::set1(k[j]), k1 = V::set1(k[j + 1]);
     for (int q = 0; q < C; ++q) a[q] = V::fma(V::load(s + j + q * N), k0, a[q]);
@@ -387,5 +388,44 @@ void descriptorHist(const GradientPatch& p, int radius, float cos_t, float sin_t
       }
 }
 
-const Kernels kTable = {kIsaName,   rowFilter,    colFilter,       upsampleRow,   dogRow,
-                        extremaRow, gradientSpan, orientationHist, descriptorHist};
+// OpenCV's orientation histogram smoothing: hist[i] = (t[i-2] + t[i+2]) / 16 + (t[i-1] + t[i+1])
+// * 4 / 16 + t[i] * 6 / 16 (fused multiply-adds, innermost first), t = temp with temp[-2..-1] and
+// temp[n..n+1] the wrapped bins.
+void orientationSmooth(const float* temp, float* hist, int n) {
+  for (int i = 0; i < n; ++i)
+    hist[i] = __builtin_fmaf(temp[i - 2] + temp[i + 2], 1.f / 16.f,
+                             __builtin_fmaf(temp[i - 1] + temp[i + 1], 4.f / 16.f, temp[i] * (6.f / 16.f)));
+}
+
+// OpenCV's descriptor normalisation: its squared norm as 16 partial sums (entry b into sum b mod
+// 16, fused multiply-adds) added in order, entries clipped at 0.2 of the norm, the clipped norm
+// (serial fused multiply-adds), then round(v * 512 / norm) clamped to 0..255. raw is clipped in
+// place.
+void descriptorFinish(float* raw, float* out) {
+  constexpr int N = V::N;
+  constexpr int kLen = 128;
+  float part[16];
+  for (int l = 0; l < 16; l += N) {
+    V::F acc = V::set1(0.f);
+    for (int b = 0; b < kLen; b += 16) acc = V::fma(V::load(raw + b + l), V::load(raw + b + l), acc);
+    V::store(part + l, acc);
+  }
+  float nrm2 = 0;
+  for (int l = 0; l < 16; ++l) nrm2 += part[l];
+  const float thr = __builtin_sqrtf(nrm2) * 0.2f;
+  nrm2 = 0;
+  for (int b = 0; b < kLen; ++b) {
+    const float v = raw[b] < thr ? raw[b] : thr;
+    raw[b] = v;
+    nrm2 = __builtin_fmaf(v, v, nrm2);
+  }
+  const float root = __builtin_sqrtf(nrm2);
+  const float scale = 512.f / (root > 1.1920929e-07f ? root : 1.1920929e-07f);  // FLT_EPSILON
+  const V::F vs = V::set1(scale), lo = V::set1(0.f), hi = V::set1(255.f);
+  for (int b = 0; b < kLen; b += N)
+    V::store(out + b, V::min(V::max(V::to_float(V::to_int(V::mul(V::load(raw + b), vs))), lo), hi));
+}
+
+const Kernels kTable = {kIsaName,   rowFilter,    colFilter,       upsampleRow,       dogRow,
+                        extremaRow, gradientSpan, orientationHist, orientationSmooth, descriptorHist,
+                        descriptorFinish};
