@@ -98,13 +98,14 @@ struct FreeDeleter {
 };
 
 /// Grow-only 64-byte-aligned buffer of T: reused across calls, so that a frame neither
-/// allocates nor page-faults once the first one has run.
+/// allocates nor page-faults once the first one has run. It grows by at least half its size, so
+/// that images of varying sizes (regions of interest) reallocate a few times only.
 template <class T>
 class Buffer {
  public:
   T* get(size_t count) {
     if (count > size_) {
-      const size_t bytes = (count * sizeof(T) + 63) / 64 * 64;
+      const size_t bytes = (std::max(count, size_ + size_ / 2) * sizeof(T) + 63) / 64 * 64;
       data_.reset(static_cast<T*>(std::aligned_alloc(64, bytes)));
       if (!data_) throw std::bad_alloc();
       size_ = bytes / sizeof(T);
@@ -261,6 +262,21 @@ Workspace& workspace() {
   return ws;
 }
 
+/// Gradient samples (magnitude, angle) around (r, c) of a layer, computed on demand into the
+/// thread's scratch (not as whole gradient planes in the sweep: those went to memory and back,
+/// and cost more than the windows, which cover part of the image): rows |i| <= radius, in row i
+/// the columns [lo, hi] computed so far, grown by coverRow (the orientation square, then each
+/// descriptor's rotated grid: only the samples a histogram reads). Kept while the next keypoint
+/// of the same spot asks for it.
+struct GradientWindow {
+  si::GradientPatch p;
+  uint64_t generation = 0;  ///< Octave::generation of the pyramid it was computed from
+  int layer = -1, r = 0, c = 0, radius = -1;
+  const float* img = nullptr;  ///< the layer at (r, c)
+  int stride = 0;
+  std::vector<int> lo, hi;  ///< per row i + radius; lo > hi: nothing yet
+};
+
 /// Per-thread scratch of the keypoint stages.
 struct KeypointScratch {
   Buffer<float> weights, gauss, sum;
@@ -277,13 +293,11 @@ struct KeypointScratch {
   float* slots_ = nullptr;
   std::vector<int32_t> index;
   std::vector<uint32_t> bits;
-  /// The last gradient window (gradientPatch) and what it covers.
-  Buffer<float> patch_mag, patch_ori;
-  size_t patch_zeroed = 0;
-  si::GradientPatch patch;
-  uint64_t patch_generation = 0;  ///< Octave::generation of the window's pyramid
-  int patch_layer = -1, patch_r = 0, patch_c = 0, patch_radius = -1, patch_square = -1;
-  float patch_disc = 0;
+  /// The last gradient window (gradientWindow) and its samples.
+  GradientWindow window;
+  Buffer<float> window_mag, window_ori;
+  size_t window_zeroed = 0;
+  std::vector<int> columns_a, columns_b;  ///< a descriptor's columns per row (descriptor_columns)
 };
 
 KeypointScratch& keypointScratch() {
@@ -674,61 +688,67 @@ void sweepOctave(const si::Kernels& K, const Params& P, int o, const cv::Mat& in
   }
 }
 
-/// The gradient samples (magnitude, angle) around (r, c) of `layer`, computed into the thread's
-/// scratch (not as whole gradient planes in the sweep: those went to memory and back, and cost
-/// more than computing the windows, which cover part of the image): rows |i| <= radius; in row i
-/// the columns |j| <= `square` (|i| <= square) and those within the disc of radius `disc` (+1
-/// sample; disc = 0: all |j| <= radius). A window is computed once per spot and reused while it
-/// covers what is asked for (orientation, then descriptors).
-si::GradientPatch gradientPatch(const si::Kernels& K, const Octave& oct, int layer, int r, int c, int radius,
-                                int square, float disc, KeypointScratch& s) {
-  const float disc_key = disc > 0 ? disc : 1e30f;
-  if (s.patch_generation == oct.generation && s.patch_layer == layer && s.patch_r == r && s.patch_c == c &&
-      s.patch_radius >= radius && s.patch_square >= square && s.patch_disc >= disc_key)
-    return s.patch;
-  si::GradientPatch p;
+/// The gradient window of radius >= `radius` around (r, c) of `layer` (see GradientWindow): the
+/// thread's current one when it is that, else a new empty one.
+GradientWindow& gradientWindow(const Octave& oct, int layer, int r, int c, int radius, KeypointScratch& s) {
+  GradientWindow& w = s.window;
+  if (w.generation == oct.generation && w.layer == layer && w.r == r && w.c == c && w.radius >= radius) return w;
   // Columns -radius - 16 .. radius + 16 (the kernels' vector loads run past the window).
   const int pitch = roundUp(2 * radius + 1 + 32, 16);
   const size_t floats = static_cast<size_t>(2 * radius + 1) * pitch + 64;
-  float* mag = s.patch_mag.get(floats);
-  float* ori = s.patch_ori.get(floats);
-  if (floats > s.patch_zeroed) {  // the lanes past a row's samples are read, never used: keep them finite
-    std::fill(mag, mag + s.patch_mag.size(), 0.f);
-    std::fill(ori, ori + s.patch_mag.size(), 0.f);
-    s.patch_zeroed = s.patch_mag.size();
+  float* mag = s.window_mag.get(floats);
+  float* ori = s.window_ori.get(floats);
+  if (s.window_mag.size() > s.window_zeroed) {  // lanes past a row's samples are read, never used
+    std::fill(mag, mag + s.window_mag.size(), 0.f);
+    std::fill(ori, ori + s.window_ori.size(), 0.f);
+    s.window_zeroed = s.window_mag.size();
   }
   const ptrdiff_t centre = static_cast<ptrdiff_t>(radius) * pitch + radius + 16;
-  p.mag = mag + centre;
-  p.ori = ori + centre;
-  p.pitch = pitch;
-  p.i0 = std::max(-radius, 1 - r);
-  p.i1 = std::min(radius, oct.h - 2 - r);
-  p.j0 = std::max(-radius, 1 - c);
-  p.j1 = std::min(radius, oct.w - 2 - c);
-  const float* img = oct.g[layer];
-  for (int i = p.i0; i <= p.i1; ++i) {
-    int half = radius;
-    if (disc > 0) {
-      const float q = disc * disc - static_cast<float>(i) * static_cast<float>(i);
-      half = q > 0 ? static_cast<int>(std::sqrt(q)) + 1 : 0;
-      if (std::abs(i) <= square) half = std::max(half, square);
-      half = std::min(half, radius);
-    }
-    const int ja = std::max(p.j0, -half), jb = std::min(p.j1, half);
-    if (ja > jb) continue;
-    const ptrdiff_t o = static_cast<ptrdiff_t>(i) * pitch + ja;
-    K.gradient_span(img + static_cast<ptrdiff_t>(r + i) * oct.stride + c + ja, oct.stride, mag + centre + o,
-                    ori + centre + o, jb - ja + 1);
+  w.p.mag = mag + centre;
+  w.p.ori = ori + centre;
+  w.p.pitch = pitch;
+  w.p.i0 = std::max(-radius, 1 - r);
+  w.p.i1 = std::min(radius, oct.h - 2 - r);
+  w.p.j0 = std::max(-radius, 1 - c);
+  w.p.j1 = std::min(radius, oct.w - 2 - c);
+  w.generation = oct.generation;
+  w.layer = layer;
+  w.r = r;
+  w.c = c;
+  w.radius = radius;
+  w.img = oct.row(layer, r) + c;
+  w.stride = oct.stride;
+  w.lo.assign(2 * radius + 1, 1);
+  w.hi.assign(2 * radius + 1, 0);
+  return w;
+}
+
+/// Makes sure the samples of row i, columns [ja, jb] (clipped to the window), are computed.
+void coverRow(const si::Kernels& K, GradientWindow& w, int i, int ja, int jb) {
+  ja = std::max(ja, w.p.j0);
+  jb = std::min(jb, w.p.j1);
+  if (i < w.p.i0 || i > w.p.i1 || ja > jb) return;
+  int& lo = w.lo[i + w.radius];
+  int& hi = w.hi[i + w.radius];
+  auto compute = [&](int a, int b) {
+    const ptrdiff_t o = static_cast<ptrdiff_t>(i) * w.p.pitch + a;
+    K.gradient_span(w.img + static_cast<ptrdiff_t>(i) * w.stride + a, w.stride, const_cast<float*>(w.p.mag) + o,
+                    const_cast<float*>(w.p.ori) + o, b - a + 1);
+  };
+  if (lo > hi) {
+    compute(ja, jb);
+    lo = ja;
+    hi = jb;
+    return;
   }
-  s.patch = p;
-  s.patch_generation = oct.generation;
-  s.patch_layer = layer;
-  s.patch_r = r;
-  s.patch_c = c;
-  s.patch_radius = radius;
-  s.patch_square = square;
-  s.patch_disc = disc_key;
-  return p;
+  if (ja < lo) {
+    compute(ja, lo - 1);
+    lo = ja;
+  }
+  if (jb > hi) {
+    compute(hi + 1, jb);
+    hi = jb;
+  }
 }
 
 /// calcSIFTDescriptor's window radius for a keypoint of sigma `scl` (octave px).
@@ -739,18 +759,13 @@ int descriptorRadius(const Octave& oct, float scl) {
                                                       static_cast<double>(oct.h) * oct.h)));
 }
 
-/// Radius (octave px) of the disc holding every sample of the descriptor's rotated 4x4 grid
-/// (half-side (d + 1) / 2 histogram widths, whatever the angle).
-float descriptorDisc(float scl) {
-  return kDescrSclFactor * scl * (kDescrWidth + 1) * 0.5f * 1.4142135623730951f;
-}
-
 float keypointScale(const Params& P, int layer, float xi) {
   return P.sigma * std::pow(2.f, (layer + xi) / P.n_layers);
 }
 
 /// The keypoints (one per orientation peak) of an interpolated extremum, appended to *out. With
-/// `descriptor_window`, the gradient window computed covers the descriptor's too (describeSpot).
+/// `descriptor_window`, the gradient window is made large enough for the descriptors too
+/// (describeSpot then grows it instead of starting another).
 void orientations(const si::Kernels& K, const Params& P, const Octave& oct, const Extremum& e,
                   bool descriptor_window, KeypointScratch& s, std::vector<Kp>* out) {
   const int o = e.octave;
@@ -770,13 +785,10 @@ void orientations(const si::Kernels& K, const Params& P, const Octave& oct, cons
   const float scl_octv = kpt.size * 0.5f / (1 << o);
   const int radius = cvRoundF(kOriRadius * scl_octv);
   const float sigma = kOriSigFactor * scl_octv;
-  si::GradientPatch p;
-  if (descriptor_window) {
-    const int rd = descriptorRadius(oct, base.scl);
-    p = gradientPatch(K, oct, e.layer, e.r, e.c, std::max(radius, rd), radius, descriptorDisc(base.scl), s);
-  } else {
-    p = gradientPatch(K, oct, e.layer, e.r, e.c, radius, radius, 0.f, s);
-  }
+  GradientWindow& w = gradientWindow(oct, e.layer, e.r, e.c,
+                                     descriptor_window ? std::max(radius, descriptorRadius(oct, base.scl)) : radius, s);
+  for (int i = -radius; i <= radius; ++i) coverRow(K, w, i, -radius, radius);
+  const si::GradientPatch& p = w.p;
   float raw[kOriBins + 4];
   float* temp = raw + 2;
   if (!p.empty()) {
@@ -808,15 +820,16 @@ void orientations(const si::Kernels& K, const Params& P, const Octave& oct, cons
   }
 }
 
-/// calcSIFTDescriptor for every keypoint of one spot (same octave, layer, position, size), the
-/// gradient patch computed once. dst rows are written as CV_32F integers 0..255.
+/// calcSIFTDescriptor for every keypoint of one spot (same octave, layer, position, size), on one
+/// gradient window grown as each descriptor needs. dst rows are written as CV_32F integers 0..255.
 void describeSpot(const si::Kernels& K, const Octave& oct, const Kp* kps, int count, KeypointScratch& s,
                   float* const* dst) {
   const Kp& k0 = kps[0];
   const int pr = cvRoundF(k0.ptf_y), pc = cvRoundF(k0.ptf_x);
   const float hist_width = kDescrSclFactor * k0.scl;
   const int radius = descriptorRadius(oct, k0.scl);
-  const si::GradientPatch p = gradientPatch(K, oct, k0.layer, pr, pc, radius, 0, descriptorDisc(k0.scl), s);
+  GradientWindow& w = gradientWindow(oct, k0.layer, pr, pc, radius, s);
+  const si::GradientPatch& p = w.p;
   si::DescriptorScratch ds;
   ds.weights = s.weights.get(si::kDescrBlock * 8 * 16 + 64);
   s.index.resize(si::kDescrBlock * 16 + 16);
@@ -833,6 +846,12 @@ void describeSpot(const si::Kernels& K, const Octave& oct, const Kp* kps, int co
     const float sin_t = std::sin(ori * static_cast<float>(CV_PI / 180)) / hist_width;
     float raw[kDescrLen];
     if (!p.empty()) {
+      // The samples this descriptor reads (rows max(p.i0, -radius)..), then its histogram.
+      const int i0 = std::max(p.i0, -radius), i1 = std::min(p.i1, radius);
+      s.columns_a.resize(2 * radius + 1);
+      s.columns_b.resize(2 * radius + 1);
+      K.descriptor_columns(radius, cos_t, sin_t, p, s.columns_a.data(), s.columns_b.data());
+      for (int i = i0; i <= i1; ++i) coverRow(K, w, i, s.columns_a[i - i0], s.columns_b[i - i0]);
       K.descriptor_hist(p, radius, cos_t, sin_t, ori, ds, raw);
     } else {
       std::fill(raw, raw + kDescrLen, 0.f);

@@ -91,6 +91,9 @@ struct Kernels {
   /// OpenCV's smoothing of the orientation histogram: temp[-2 .. n+1] (the n bins and their
   /// wrapped neighbours) -> hist[0 .. n-1].
   void (*orientation_smooth)(const float* temp, float* hist, int n);
+  /// The columns the descriptor histogram reads in each row of its window (rows max(p.i0,
+  /// -radius)..min(p.i1, radius), entry k for row i0 + k): [ja[k], jb[k]], ja > jb for none.
+  void (*descriptor_columns)(int radius, float cos_t, float sin_t, const GradientPatch& p, int* ja, int* jb);
   /// OpenCV's raw descriptor histogram (before the 0.2 clip and normalisation) in its order:
   /// raw[(row * 4 + col) * 8 + bin], 128 floats; cos_t, sin_t are cos/sin of the descriptor
   /// angle divided by the histogram width; ori_deg the descriptor angle in degrees.

@@ -241,6 +241,44 @@ void orientationHist(const GradientPatch& p, int radius, float sigma, int n, flo
   }
 }
 
+// The columns [*ja, *jb] (within [j0, j1]) of window row i whose rotated position can fall inside
+// the descriptor's 4x4 grid, |r_rot|, |c_rot| < d/2 + 1/2, widened by one sample (the exact test
+// decides); false when there are none.
+inline bool descriptorRowColumns(int i, float cos_t, float sin_t, int j0, int j1, int* ja, int* jb) {
+  const float lim = 0.5f * 4 + 0.5f;
+  float lo_j = -1e30f, hi_j = 1e30f;
+  auto clip = [&](float a, float b) {  // |a j + b| < lim
+    if (a > 1e-12f || a < -1e-12f) {
+      float u = (-lim - b) / a, v = (lim - b) / a;
+      if (u > v) {
+        const float t = u;
+        u = v;
+        v = t;
+      }
+      if (u > lo_j) lo_j = u;
+      if (v < hi_j) hi_j = v;
+    } else if (b >= lim || b <= -lim) {
+      lo_j = 1e30f;
+    }
+  };
+  clip(sin_t, static_cast<float>(i) * cos_t);
+  clip(cos_t, -static_cast<float>(i) * sin_t);
+  if (lo_j > hi_j + 2.f) return false;
+  *ja = j0;
+  *jb = j1;
+  const float fa = __builtin_floorf(lo_j) - 1.f, fb = __builtin_ceilf(hi_j) + 1.f;
+  if (fa > static_cast<float>(*ja)) *ja = static_cast<int>(fa);
+  if (fb < static_cast<float>(*jb)) *jb = static_cast<int>(fb);
+  return *ja <= *jb;
+}
+
+void descriptorColumns(int radius, float cos_t, float sin_t, const GradientPatch& p, int* ja, int* jb) {
+  const int i0 = p.i0 > -radius ? p.i0 : -radius, i1 = p.i1 < radius ? p.i1 : radius;
+  const int j0 = p.j0 > -radius ? p.j0 : -radius, j1 = p.j1 < radius ? p.j1 : radius;
+  for (int i = i0; i <= i1; ++i)
+    if (!descriptorRowColumns(i, cos_t, sin_t, j0, j1, ja + (i - i0), jb + (i - i0))) ja[i - i0] = 1, jb[i - i0] = 0;
+}
+
 // OpenCV's descriptor histogram: trilinear weights of each sample into 2 x 2 cells x 2 of 8
 // orientation bins (bin 8 wraps to 0 directly). Two passes over blocks of up to kDescrBlock
 // vectors: the vector pass computes the weights of N samples at a time (iterations independent,
@@ -297,34 +335,8 @@ void descriptorHist(const GradientPatch& p, int radius, float cos_t, float sin_t
     const V::F i_sin = V::set1(static_cast<float>(i) * sin_t);
     const V::F i_cos = V::set1(static_cast<float>(i) * cos_t);
     const V::F gi = V::set1(gw[i]);
-    // Columns whose rotated position can fall inside the 4x4 grid, |r_rot|, |c_rot| < d/2 + 1/2,
-    // widened by one sample (the exact test below decides).
-    int ja = j0, jb = j1;
-    {
-      const float lim = 0.5f * d + 0.5f;
-      float lo_j = -1e30f, hi_j = 1e30f;
-      auto clip = [&](float a, float b) {  // |a j + b| < lim
-        if (a > 1e-12f || a < -1e-12f) {
-          float u = (-lim - b) / a, v = (lim - b) / a;
-          if (u > v) {
-            const float t = u;
-            u = v;
-            v = t;
-          }
-          if (u > lo_j) lo_j = u;
-          if (v < hi_j) hi_j = v;
-        } else if (b >= lim || b <= -lim) {
-          lo_j = 1e30f;
-        }
-      };
-      clip(sin_t, static_cast<float>(i) * cos_t);
-      clip(cos_t, -static_cast<float>(i) * sin_t);
-      if (lo_j > hi_j + 2.f) continue;
-      const float fa = __builtin_floorf(lo_j) - 1.f, fb = __builtin_ceilf(hi_j) + 1.f;
-      if (fa > static_cast<float>(ja)) ja = static_cast<int>(fa);
-      if (fb < static_cast<float>(jb)) jb = static_cast<int>(fb);
-      if (ja > jb) continue;
-    }
+    int ja, jb;
+    if (!descriptorRowColumns(i, cos_t, sin_t, j0, j1, &ja, &jb)) continue;
     V::F jf = V::add(V::set1(static_cast<float>(ja)), lanesf);
     for (int j = ja; j <= jb; j += N, jf = V::add(jf, vN)) {
       if (blocks == kDescrBlock) flush();
@@ -426,6 +438,6 @@ void descriptorFinish(float* raw, float* out) {
     V::store(out + b, V::min(V::max(V::to_float(V::to_int(V::mul(V::load(raw + b), vs))), lo), hi));
 }
 
-const Kernels kTable = {kIsaName,   rowFilter,    colFilter,       upsampleRow,       dogRow,
-                        extremaRow, gradientSpan, orientationHist, orientationSmooth, descriptorHist,
-                        descriptorFinish};
+const Kernels kTable = {kIsaName,        rowFilter,         colFilter,         upsampleRow,
+                        dogRow,          extremaRow,        gradientSpan,      orientationHist,
+                        orientationSmooth, descriptorColumns, descriptorHist, descriptorFinish};
