@@ -56,7 +56,8 @@ void usage() {
       "       bench_sift --stages [--frames N]: the fast extractor only, 1 thread: stage CPU medians,\n"
       "         candidate/extremum/keypoint counts, a fingerprint of the output (bit-for-bit checks)\n"
       "         and page faults per frame.\n"
-      "       bench_sift --profile extract|detect|roi [--frames N] [--only fast|opencv]: no timings;\n"
+      "       bench_sift --profile extract|detect|roi|redetect [--frames N] [--only fast|opencv]: no\n"
+      "         timings (redetect: Detector::detect with the target's pose as the prior);\n"
       "         one warm-up, then that operation on each frame, 1 thread, inside profiledRegion()\n"
       "         for valgrind --tool=callgrind --toggle-collect=profiledRegion (instruction counts).\n"
       "Wall-clock figures: run on an otherwise idle machine. REFGRASP_SIFT_ISA=avx2|scalar lowers\n"
@@ -138,8 +139,8 @@ int main(int argc, char** argv) {
       texture = argv[++i];
     } else if (a == "--profile" && i + 1 < argc) {
       profile = argv[++i];
-      if (profile != "extract" && profile != "detect" && profile != "roi") {
-        std::fprintf(stderr, "bench_sift: --profile takes extract, detect or roi\n");
+      if (profile != "extract" && profile != "detect" && profile != "roi" && profile != "redetect") {
+        std::fprintf(stderr, "bench_sift: --profile takes extract, detect, roi or redetect\n");
         return 2;
       }
     } else if (a == "--stages") {
@@ -200,9 +201,16 @@ int main(int argc, char** argv) {
         total += extractSift(data[i].left, siftFor(impl, 1)).size();
       } else if (profile == "detect") {
         total += det.detect(data[i].left, cam).find(0).has_value();
-      } else {
+      } else if (profile == "roi") {
         region.roi = data[i].roi;
         total += extractSift(data[i].left, siftFor(impl, 1), region).size();
+      } else {  // redetect: Detector::detect with the target's pose as the prior
+        DetectionQuery q;
+        ObjectPrior prior;
+        prior.object = 0;
+        prior.cMo = data[i].cMo;
+        q.priors.push_back(prior);
+        total += det.detect(data[i].left, cam, {}, q).find(0).has_value();
       }
     };
     run(0);  // warm-up: buffers, lazy initialisation
@@ -210,7 +218,7 @@ int main(int argc, char** argv) {
     for (int i = 0; i < frames; ++i) profiledRegion([&] { run(i); });
     std::printf("bench_sift --profile %s (%s): %d frames, %ld %s\n", profile.c_str(),
                 impl == SiftImplementation::kFast ? "fast" : "cv::SIFT", frames, total,
-                profile == "detect" ? "detections" : "features");
+                profile == "detect" || profile == "redetect" ? "detections" : "features");
     return 0;
   }
   if (stages_only) {  // the fast extractor's stages, thread CPU time, 1 thread
@@ -287,7 +295,7 @@ int main(int argc, char** argv) {
   rows[kRoiExtractCpu] = {"ROI extraction, CPU time", NAN, NAN, "ms", "-"};
   rows[kRoiDetect] = {"ROI re-detection (pose prior)", NAN, NAN, "ms", "-"};
   rows[kRoiDetectCpu] = {"ROI re-detection, CPU time", NAN, NAN, "ms", "-"};
-  std::vector<double> stage[5];
+  std::vector<double> stage[5], redetect_area, redetect_min, redetect_max;
   int features[2] = {0, 0}, found[2] = {0, 0}, stereo_found[2] = {0, 0}, roi_found[2] = {0, 0};
   const int saved_threads = cv::getNumThreads();
   const std::string load_before = loadAverage();
@@ -378,6 +386,11 @@ int main(int argc, char** argv) {
         rw.push_back(timeMs([&] { r = det1.detect(data[i].left, cam, {}, q); }));
         rc.push_back(threadCpuMs([&] { det1.detect(data[i].left, cam, {}, q); }));
         roi_found[which] += r.find(id1).has_value();
+        if (which == 1 && !r.stats.empty()) {
+          redetect_area.push_back(100.0 * r.stats[0].roi.area() / (cam.width * cam.height));
+          redetect_min.push_back(r.stats[0].min_keypoint_px);
+          redetect_max.push_back(r.stats[0].max_keypoint_px);
+        }
       }
       set(kDetect1Cpu, median(cw));
       set(kStereoCpu, median(cs));
@@ -427,8 +440,9 @@ int main(int argc, char** argv) {
                 r.paper);
   }
   std::printf("\nROI extraction: the target's bounding box + 16 px (median %.0f %% of the frame), keypoint sizes "
-              "2-40 px; ROI re-detection: Detector::detect with the true pose as the prior\n",
-              median(roi_area));
+              "2-40 px; ROI re-detection: Detector::detect with the true pose as the prior (its region: median "
+              "%.0f %% of the frame, keypoint sizes %.1f-%.1f px)\n",
+              median(roi_area), median(redetect_area), median(redetect_min), median(redetect_max));
   if (!stage[0].empty()) {
     std::printf("fast extractor, 1 thread, stage medians (thread CPU time, ms): scale space (pyramid + DoG + "
                 "extremum test) %.2f | localisation %.2f | gradients + orientation + descriptors %.2f | sort + "
