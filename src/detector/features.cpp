@@ -149,7 +149,14 @@ Features extractWhole(const cv::Mat& image, const SiftOptions& opt, double min_s
     order.resize(opt.max_features);
 
   f.keypoints.reserve(order.size());
-  f.descriptors.create(static_cast<int>(order.size()), 128, CV_32F);
+  // The fast SIFT returns them in this order already: its descriptors are used as they are.
+  bool in_order = !order.empty() && order.size() == static_cast<size_t>(desc.rows) && desc.type() == CV_32F;
+  for (size_t i = 0; i < order.size() && in_order; ++i) in_order = order[i] == static_cast<int>(i);
+  if (in_order) {
+    f.descriptors = desc;
+  } else {
+    f.descriptors.create(static_cast<int>(order.size()), 128, CV_32F);
+  }
   for (size_t i = 0; i < order.size(); ++i) {
     cv::KeyPoint kp = kps[order[i]];
     // The internal 2x up-sampling (pixel-centre aligned) puts input pixel x at 2x + 0.5 in the
@@ -162,7 +169,7 @@ Features extractWhole(const cv::Mat& image, const SiftOptions& opt, double min_s
       kp.size *= 2.f;
     }
     f.keypoints.push_back(kp);
-    desc.row(order[i]).copyTo(f.descriptors.row(static_cast<int>(i)));
+    if (!in_order) desc.row(order[i]).copyTo(f.descriptors.row(static_cast<int>(i)));
   }
   return f;
 }
