@@ -1,12 +1,18 @@
 #include "core/camera.h"
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <regex>
+#include <map>
+#include <set>
 #include <sstream>
 
 #include "core/error.h"
+#include "core/file.h"
+#include "core/image_io.h"
 #include "core/yaml.h"
 
 namespace refgrasp {
@@ -90,15 +96,43 @@ Eigen::Vector2d Intrinsics::undistortPixel(const Eigen::Vector2d& px) const {
 
 namespace {
 
+// ROS camera_info YAML, as camera_calibration_parsers writes it.
+const std::set<std::string> kRosKeys = {"image_width", "image_height", "camera_name",
+                                        "camera_matrix", "distortion_model",
+                                        "distortion_coefficients", "rectification_matrix",
+                                        "projection_matrix"};
+
+// {rows, cols, data}: data of rows x cols numbers when rows and cols are given.
+std::vector<double> rosMatrix(const YamlFile& f, const std::string& field, int n) {
+  const YAML::Node m = f.get(f.root(), field);
+  if (m.IsDefined() && !m.IsNull()) f.onlyKeys(m, field, {"rows", "cols", "data"});
+  const auto data = f.numbers(f.root(), field + ".data", n);
+  if (f.has(f.root(), field + ".rows") || f.has(f.root(), field + ".cols")) {
+    const int rows = f.integer(f.root(), field + ".rows"), cols = f.integer(f.root(), field + ".cols");
+    if (rows < 0 || cols < 0 || static_cast<size_t>(rows) * static_cast<size_t>(cols) != data.size())
+      f.fail(field, "rows x cols (" + std::to_string(rows) + " x " + std::to_string(cols) +
+                        ") differs from the " + std::to_string(data.size()) + " numbers of data");
+  }
+  return data;
+}
+
 Intrinsics loadRosYaml(const std::string& path) {
   const YamlFile f(path);
   const YAML::Node& r = f.root();
+  f.onlyKeys(r, "", kRosKeys);
   Intrinsics c;
   c.width = f.integer(r, "image_width");
   c.height = f.integer(r, "image_height");
   if (c.width <= 0) f.fail("image_width", "must be positive");
   if (c.height <= 0) f.fail("image_height", "must be positive");
-  const auto K = f.numbers(r, "camera_matrix.data", 9);
+  f.string(r, "camera_name", "");
+  const auto K = rosMatrix(f, "camera_matrix", 9);
+  // K = [fx s cx; 0 fy cy; 0 0 1]: a transposed (column-major) matrix or a skew is an error,
+  // not something to half-read.
+  if (K[3] != 0 || K[6] != 0 || K[7] != 0 || K[8] != 1)
+    f.fail("camera_matrix.data", "not [fx, 0, cx, 0, fy, cy, 0, 0, 1] (row-major, upper-triangular, "
+                                 "last row 0 0 1)");
+  if (K[1] != 0) f.fail("camera_matrix.data", "skew (element 1) is not supported, must be 0");
   c.fx = K[0];
   c.cx = K[2];
   c.fy = K[4];
@@ -108,97 +142,230 @@ Intrinsics loadRosYaml(const std::string& path) {
     const std::string model = f.string(r, "distortion_model", "plumb_bob");
     if (model != "plumb_bob" && model != "rational_polynomial")
       f.fail("distortion_model", "unsupported model '" + model + "' (use plumb_bob)");
-    const auto d = f.numbers(r, "distortion_coefficients.data");
+    const auto d = rosMatrix(f, "distortion_coefficients", -1);
     if (d.size() != 0 && d.size() != 4 && d.size() != 5 && d.size() != 8)
       f.fail("distortion_coefficients.data", "expected 0, 4, 5 or 8 numbers");
     if (d.size() == 8 && (d[5] != 0 || d[6] != 0 || d[7] != 0))
       f.fail("distortion_coefficients.data", "rational terms k4..k6 are not supported");
     for (size_t i = 0; i < std::min<size_t>(5, d.size()); ++i) c.dist[i] = d[i];
+  } else {
+    f.string(r, "distortion_model", "");
   }
+  if (f.has(r, "rectification_matrix")) rosMatrix(f, "rectification_matrix", 9);
+  if (f.has(r, "projection_matrix")) rosMatrix(f, "projection_matrix", 12);
   return c;
 }
 
-// Minimal reader for ViSP's camera XML (vpXmlParserCamera): no attributes, no nesting surprises.
-std::string xmlTag(const std::string& text, const std::string& tag, bool* found) {
-  const std::regex re("<" + tag + ">\\s*([^<]*?)\\s*</" + tag + ">");
-  std::smatch m;
-  *found = std::regex_search(text, m, re);
-  return *found ? m[1].str() : std::string();
+// A minimal XML reader for ViSP's camera files: elements with text, comments, a prolog; no
+// attributes, entities, CDATA or DOCTYPE (vpXmlParserCamera writes none). Bounded depth.
+struct XmlElement {
+  std::string name, text;
+  int line = 0;
+  std::vector<XmlElement> children;
+};
+
+class XmlReader {
+ public:
+  XmlReader(const std::string& path, const std::string& text) : path_(path), s_(text) {}
+
+  XmlElement document() {
+    skipMisc();
+    if (!at("<")) fail("no root element (expected ViSP camera XML)");
+    XmlElement root = element(0);
+    skipMisc();
+    if (pos_ < s_.size()) fail("text after the root element");
+    return root;
+  }
+
+ private:
+  [[noreturn]] void fail(const std::string& problem) {
+    throw ConfigError(path_, "line " + std::to_string(line()) + ": " + problem);
+  }
+  // Line of pos_ (pos_ only moves forward: counted incrementally).
+  int line() {
+    line_ += static_cast<int>(std::count(s_.begin() + counted_, s_.begin() + pos_, '\n'));
+    counted_ = pos_;
+    return line_;
+  }
+  bool at(const char* t) const { return s_.compare(pos_, std::strlen(t), t) == 0; }
+  void skipSpace() {
+    while (pos_ < s_.size() && std::isspace(static_cast<unsigned char>(s_[pos_]))) ++pos_;
+  }
+  void skipPast(const char* end, const char* what) {
+    const size_t e = s_.find(end, pos_);
+    if (e == std::string::npos) fail(std::string("unterminated ") + what);
+    pos_ = e + std::strlen(end);
+  }
+  // Whitespace, comments and <?...?> between elements.
+  void skipMisc() {
+    while (true) {
+      skipSpace();
+      if (at("<!--")) {
+        skipPast("-->", "comment");
+      } else if (at("<?")) {
+        skipPast("?>", "<?...?>");
+      } else if (at("<!")) {
+        fail("DOCTYPE and CDATA are not supported");
+      } else {
+        return;
+      }
+    }
+  }
+  std::string name() {
+    const size_t a = pos_;
+    while (pos_ < s_.size() && (std::isalnum(static_cast<unsigned char>(s_[pos_])) ||
+                                s_[pos_] == '_' || s_[pos_] == '-' || s_[pos_] == '.' || s_[pos_] == ':'))
+      ++pos_;
+    if (pos_ == a) fail("expected an element name");
+    return s_.substr(a, pos_ - a);
+  }
+  XmlElement element(int depth) {
+    if (depth > 16) fail("elements nested deeper than 16");
+    XmlElement e;
+    e.line = line();
+    ++pos_;  // '<'
+    e.name = name();
+    skipSpace();
+    if (at("/>")) {
+      pos_ += 2;
+      return e;
+    }
+    if (!at(">")) fail("<" + e.name + ">: attributes are not supported");
+    ++pos_;
+    while (true) {
+      const size_t text_end = s_.find('<', pos_);
+      if (text_end == std::string::npos) fail("<" + e.name + "> is not closed");
+      e.text += s_.substr(pos_, text_end - pos_);
+      pos_ = text_end;
+      if (at("</")) {
+        pos_ += 2;
+        const std::string closing = name();
+        if (closing != e.name) fail("</" + closing + "> closes <" + e.name + ">");
+        skipSpace();
+        if (!at(">")) fail("</" + closing + ": expected '>'");
+        ++pos_;
+        return e;
+      }
+      if (at("<!--") || at("<?") || at("<!")) {
+        skipMisc();
+        continue;
+      }
+      if (++elements_ > 10000) fail("more than 10000 elements");
+      e.children.push_back(element(depth + 1));
+    }
+  }
+
+  std::string path_;
+  const std::string& s_;
+  size_t pos_ = 0, counted_ = 0;
+  int line_ = 1, elements_ = 0;
+};
+
+std::string trimmed(const std::string& s) {
+  const size_t a = s.find_first_not_of(" \t\r\n");
+  if (a == std::string::npos) return "";
+  return s.substr(a, s.find_last_not_of(" \t\r\n") - a + 1);
 }
 
-double xmlNumber(const std::string& path, const std::string& text, const std::string& tag) {
-  bool found = false;
-  const std::string s = xmlTag(text, tag, &found);
-  if (!found) throw ConfigError(path, tag, "missing");
+// The children of `e` by name: each at most once, each in `known` (a typo gets "did you mean").
+std::map<std::string, const XmlElement*> xmlFields(const std::string& path, const XmlElement& e,
+                                                  const std::string& where,
+                                                  const std::set<std::string>& known) {
+  std::map<std::string, const XmlElement*> out;
+  for (const XmlElement& c : e.children) {
+    const std::string field = where + "." + c.name;
+    if (!known.count(c.name)) throw ConfigError(path, field, "unknown element" + didYouMean(c.name, known));
+    if (c.name != "model" && !out.emplace(c.name, &c).second)
+      throw ConfigError(path, field, "given twice (line " + std::to_string(c.line) + ")");
+  }
+  return out;
+}
+
+double xmlNumber(const std::string& path, const std::map<std::string, const XmlElement*>& fields,
+                 const std::string& where, const std::string& tag) {
+  const auto it = fields.find(tag);
+  if (it == fields.end()) throw ConfigError(path, where + "." + tag, "missing");
+  const std::string s = trimmed(it->second->text);
   try {
     size_t used = 0;
     const double v = std::stod(s, &used);
     if (used != s.size() || !std::isfinite(v)) throw std::invalid_argument(s);
     return v;
   } catch (const std::exception&) {
-    throw ConfigError(path, tag, "expected a number, got '" + s + "'");
+    throw ConfigError(path, where + "." + tag, "expected a finite number, got '" + s + "'");
   }
 }
 
 Intrinsics loadVispXml(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw ConfigError(path, "cannot open for reading");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  const std::string text = ss.str();
-  const size_t cam_begin = text.find("<camera>");
-  const size_t cam_end = text.find("</camera>");
-  if (cam_begin == std::string::npos || cam_end == std::string::npos || cam_end < cam_begin)
-    throw ConfigError(path, "no <camera> element (expected ViSP camera XML)");
-  const std::string cam = text.substr(cam_begin, cam_end - cam_begin);
+  const std::string text = readRegularFile(path, kMaxConfigFileBytes);
+  const XmlElement root = XmlReader(path, text).document();
+  const XmlElement* cam = root.name == "camera" ? &root : nullptr;
+  for (const XmlElement& c : root.children)
+    if (!cam && c.name == "camera") cam = &c;
+  if (!cam) throw ConfigError(path, "no <camera> element (expected ViSP camera XML)");
+  static const std::set<std::string> kCameraTags = {
+      "name", "image_width", "image_height", "subsampling_width", "subsampling_height",
+      "full_width", "full_height", "model", "additional_information"};
+  const auto fields = xmlFields(path, *cam, "camera", kCameraTags);
   Intrinsics c;
-  c.width = static_cast<int>(xmlNumber(path, cam, "image_width"));
-  c.height = static_cast<int>(xmlNumber(path, cam, "image_height"));
-  if (c.width <= 0 || c.height <= 0) throw ConfigError(path, "image_width", "must be positive");
+  const double w = xmlNumber(path, fields, "camera", "image_width");
+  const double h = xmlNumber(path, fields, "camera", "image_height");
+  if (w <= 0 || h <= 0 || w != std::floor(w) || h != std::floor(h) || w > 1e9 || h > 1e9)
+    throw ConfigError(path, "camera.image_width", "image size must be positive integers");
+  c.width = static_cast<int>(w);
+  c.height = static_cast<int>(h);
   // ViSP writes one <model> per projection type: perspectiveProjWithoutDistortion and
   // perspectiveProjWithDistortion. Prefer the latter: its kud maps undistorted to distorted
   // normalised coordinates with one radial term, exactly OpenCV's k1.
-  std::string chosen;
+  const XmlElement* chosen = nullptr;
   bool with_distortion = false;
-  size_t pos = 0;
-  while ((pos = cam.find("<model>", pos)) != std::string::npos) {
-    const size_t end = cam.find("</model>", pos);
-    if (end == std::string::npos) throw ConfigError(path, "model", "unterminated <model>");
-    const std::string model = cam.substr(pos, end - pos);
-    bool found = false;
-    const std::string type = xmlTag(model, "type", &found);
-    if (!found) throw ConfigError(path, "model.type", "missing");
+  std::set<std::string> types;
+  for (const XmlElement& m : cam->children) {
+    if (m.name != "model") continue;
+    const auto mf = xmlFields(path, m, "camera.model",
+                              {"type", "px", "py", "u0", "v0", "kud", "kdu", "k1", "k2", "k3", "k4", "k5"});
+    const auto t = mf.find("type");
+    if (t == mf.end()) throw ConfigError(path, "camera.model.type", "missing");
+    const std::string type = trimmed(t->second->text);
+    if (!types.insert(type).second)
+      throw ConfigError(path, "camera.model", "two models of type " + type);
     if (type == "perspectiveProjWithDistortion") {
-      chosen = model;
+      chosen = &m;
       with_distortion = true;
     } else if (type == "perspectiveProjWithoutDistortion") {
-      if (chosen.empty()) chosen = model;
+      if (!chosen) chosen = &m;
     } else {
-      throw ConfigError(path, "model.type",
+      throw ConfigError(path, "camera.model.type",
                         "unsupported projection model '" + type +
                             "' (use perspectiveProjWithDistortion or "
                             "perspectiveProjWithoutDistortion)");
     }
-    pos = end;
   }
-  if (chosen.empty()) throw ConfigError(path, "model", "missing");
-  c.fx = xmlNumber(path, chosen, "px");
-  c.fy = xmlNumber(path, chosen, "py");
-  c.cx = xmlNumber(path, chosen, "u0");
-  c.cy = xmlNumber(path, chosen, "v0");
-  if (c.fx <= 0 || c.fy <= 0) throw ConfigError(path, "px", "focal lengths must be positive");
-  if (with_distortion) c.dist[0] = xmlNumber(path, chosen, "kud");
+  if (!chosen) throw ConfigError(path, "camera.model", "missing");
+  const auto mf = xmlFields(path, *chosen, "camera.model",
+                            {"type", "px", "py", "u0", "v0", "kud", "kdu", "k1", "k2", "k3", "k4", "k5"});
+  c.fx = xmlNumber(path, mf, "camera.model", "px");
+  c.fy = xmlNumber(path, mf, "camera.model", "py");
+  c.cx = xmlNumber(path, mf, "camera.model", "u0");
+  c.cy = xmlNumber(path, mf, "camera.model", "v0");
+  if (c.fx <= 0 || c.fy <= 0) throw ConfigError(path, "camera.model.px", "focal lengths must be positive");
+  if (with_distortion) c.dist[0] = xmlNumber(path, mf, "camera.model", "kud");
   return c;
 }
 
 }  // namespace
 
 Intrinsics loadCameraFile(const std::string& path) {
-  std::error_code ec;
-  if (!std::filesystem::exists(path, ec)) throw ConfigError(path, "file not found");
+  if (const std::string p = regularFileProblem(path, kMaxConfigFileBytes); !p.empty())
+    throw ConfigError(path, p);
   const std::string ext = std::filesystem::path(path).extension().string();
-  if (ext == ".xml" || ext == ".XML") return loadVispXml(path);
-  return loadRosYaml(path);
+  Intrinsics c = ext == ".xml" || ext == ".XML" ? loadVispXml(path) : loadRosYaml(path);
+  // Every consumer allocates images of this size (renderer, undistortion, checks).
+  if (static_cast<int64_t>(c.width) * c.height > kDefaultMaxImagePixels)
+    throw ConfigError(path, "image size " + std::to_string(c.width) + "x" + std::to_string(c.height) +
+                                " is more than the " + std::to_string(kDefaultMaxImagePixels) +
+                                "-pixel limit of an image");
+  return c;
 }
 
 void saveCameraFile(const std::string& path, const Intrinsics& c, const std::string& name) {
@@ -218,6 +385,7 @@ void saveCameraFile(const std::string& path, const Intrinsics& c, const std::str
 
 StereoRig loadStereoRig(const std::string& path) {
   const YamlFile f(path);
+  f.onlyKeys(f.root(), "", {"left", "right", "right_in_left"});
   StereoRig rig;
   const auto loadEye = [&](const char* field) {
     const std::string cam = f.resolve(f.string(f.root(), field));

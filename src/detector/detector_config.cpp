@@ -118,6 +118,21 @@ DetectorOptions loadDetectorOptions(const std::string& path) {
     }
   });
 
+  // Counts that set loop lengths or allocations: a typo of a few zeros must not hang a frame.
+  static const std::map<std::string, double> kMaxima = {
+      {"sift.threads", 256},
+      {"match.max_hypotheses", 100000},
+      {"match.max_instances", 100},
+      {"pose_options.paper_lm_iterations", 10000},
+      {"pose_options.refined_lm_iterations", 10000},
+      {"dense.max_iterations", 10000},
+      {"dense.max_template_px", 1 << 24},
+      {"dense.gauss_filter_size", 99},
+      {"dense.pose_grid", 64}};
+  for (const auto& [field, max] : kMaxima)
+    if (f.has(f.root(), field) && f.number(f.root(), field) > max)
+      f.fail(field, "must be at most " + std::to_string(static_cast<long long>(max)));
+
   try {
     opt.check();
   } catch (const std::invalid_argument& e) {

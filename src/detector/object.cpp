@@ -2,10 +2,10 @@
 
 #include <cmath>
 #include <filesystem>
-#include <opencv2/imgcodecs.hpp>
 
 #include "core/error.h"
 #include "core/geometry.h"
+#include "core/image_io.h"
 #include "core/yaml.h"
 
 namespace refgrasp::detector {
@@ -14,6 +14,8 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr double kMinRegionAreaPx2 = 16.0;
+// A pattern outline is a few to a few hundred points; the simplicity test is quadratic.
+constexpr size_t kMaxRegionPoints = 1000;
 
 double cross2(const Eigen::Vector2d& a, const Eigen::Vector2d& b) {
   return a.x() * b.y() - a.y() * b.x();
@@ -82,6 +84,9 @@ ObjectModel makeObjectModel(const std::string& name, const cv::Mat& reference_gr
     polygon = {{-0.5, -0.5}, {W - 0.5, -0.5}, {W - 0.5, H - 0.5}, {-0.5, H - 0.5}};
   } else {
     if (polygon.size() < 3) fail("pattern_region", "needs at least 3 points");
+    if (polygon.size() > kMaxRegionPoints)
+      fail("pattern_region", std::to_string(polygon.size()) + " points, more than the limit of " +
+                                 std::to_string(kMaxRegionPoints));
     for (size_t i = 0; i < polygon.size(); ++i)
       if (!polygon[i].allFinite())
         fail("pattern_region", "point " + std::to_string(i) + " is not finite");
@@ -141,15 +146,13 @@ ObjectModel textureObject(const std::string& name, const cv::Mat& texture_gray, 
 ObjectModel loadObjectDefinition(const std::string& path) {
   const YamlFile f(path);
   const YAML::Node& r = f.root();
+  f.onlyKeys(r, "", {"name", "reference_image", "camera", "reference_pose", "pattern_region",
+                     "pattern_plane"});
   const std::string name = f.string(r, "name", fs::path(path).stem().string());
 
   const std::string image_path = f.resolve(f.string(r, "reference_image"));
-  std::error_code ec;
-  if (!fs::is_regular_file(image_path, ec))
-    f.fail("reference_image", "file not found: " + image_path);
-  const cv::Mat image = cv::imread(image_path, cv::IMREAD_GRAYSCALE);
-  if (image.empty())
-    f.fail("reference_image", "cannot decode image (corrupt or unsupported format): " + image_path);
+  const ImageRead image = readImage(image_path, ImageMode::kGray);
+  if (!image.ok()) f.fail("reference_image", image.error);
 
   std::optional<Intrinsics> camera;
   if (f.has(r, "camera")) {
@@ -166,11 +169,15 @@ ObjectModel loadObjectDefinition(const std::string& path) {
   if (f.has(r, "pattern_region")) {
     const YAML::Node seq = f.get(r, "pattern_region");
     if (!seq.IsSequence()) f.fail("pattern_region", "expected a list of [u, v] points");
+    if (seq.size() > kMaxRegionPoints)
+      f.fail("pattern_region", std::to_string(seq.size()) + " points, more than the limit of " +
+                                   std::to_string(kMaxRegionPoints));
     for (size_t i = 0; i < seq.size(); ++i) {
       const std::string field = "pattern_region[" + std::to_string(i) + "]";
       if (!seq[i].IsSequence() || seq[i].size() != 2) f.fail(field, "expected [u, v]");
       Eigen::Vector2d p;
       for (int k = 0; k < 2; ++k) {
+        if (!seq[i][k].IsScalar()) f.fail(field, "expected two numbers");
         try {
           p[k] = seq[i][k].as<double>();
         } catch (const YAML::Exception&) {
@@ -184,10 +191,11 @@ ObjectModel loadObjectDefinition(const std::string& path) {
   Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
   double offset = 0;
   if (f.has(r, "pattern_plane")) {
+    f.onlyKeys(f.get(r, "pattern_plane"), "pattern_plane", {"normal", "offset"});
     if (f.has(r, "pattern_plane.normal")) normal = f.vec3(r, "pattern_plane.normal");
     offset = f.number(r, "pattern_plane.offset", 0.0);
   }
-  return makeObjectModel(name, image, camera, ref_cMo, polygon, normal, offset, path);
+  return makeObjectModel(name, image.image, camera, ref_cMo, polygon, normal, offset, path);
 }
 
 }  // namespace refgrasp::detector

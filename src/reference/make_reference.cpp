@@ -4,7 +4,10 @@
 #include <visp3/detection/vpDetectorAprilTag.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -187,6 +190,17 @@ std::string relativeTo(const std::string& path, const fs::path& dir) {
   return ec || rel.empty() ? fs::absolute(path).string() : rel.string();
 }
 
+// A YAML double-quoted scalar: a name or path with ':', '#' or a newline stays one value
+// (oneLine's escapes \n, \t, \xNN are YAML's own).
+std::string yamlQuoted(const std::string& s) {
+  std::string quoted;
+  for (const char c : s) {
+    if (c == '"' || c == '\\') quoted += '\\';
+    quoted += c;
+  }
+  return "\"" + oneLine(quoted, size_t{1} << 40) + "\"";
+}
+
 }  // namespace
 
 Reference fromCorners(const std::array<Eigen::Vector2d, 4>& corners_px, double width_m,
@@ -257,16 +271,16 @@ void writeObjectDefinition(const std::string& yaml_path, const std::string& name
   std::error_code ec;
   if (!dir.empty()) fs::create_directories(dir, ec);
   std::ofstream out(yaml_path);
-  if (!out) throw ConfigError(yaml_path, "cannot open for writing");
+  if (!out) throw OutputError(yaml_path, std::string("cannot open for writing: ") + std::strerror(errno));
   const Eigen::Vector3d t = ref.cMo.t, rv = ref.cMo.rotationVector();
   out << "# Object definition (README \"Object definition\") made by make_reference (" << ref.method
       << ", " << yamlNumber(ref.width_m) << " x " << yamlNumber(ref.height_m)
       << " m, corner reprojection RMS " << yamlNumber(ref.rms_px) << " px).\n"
       << "# Object frame: origin at the centre of the " << (ref.method == "corners" ? "rectangle" : "tag")
       << ", x along its top edge, y along its left edge, z into the plane.\n"
-      << "name: " << name << "\n"
-      << "reference_image: " << relativeTo(photo_path, dir) << "\n"
-      << "camera: " << relativeTo(camera_path, dir) << "\n"
+      << "name: " << yamlQuoted(name) << "\n"
+      << "reference_image: " << yamlQuoted(relativeTo(photo_path, dir)) << "\n"
+      << "camera: " << yamlQuoted(relativeTo(camera_path, dir)) << "\n"
       << "reference_pose:\n"
       << "  translation: [" << yamlNumber(t.x()) << ", " << yamlNumber(t.y()) << ", " << yamlNumber(t.z())
       << "]   # metres\n"
@@ -277,7 +291,7 @@ void writeObjectDefinition(const std::string& yaml_path, const std::string& name
     out << (i ? ", " : "") << "[" << yamlNumber(ref.pattern_region_px[i].x()) << ", "
         << yamlNumber(ref.pattern_region_px[i].y()) << "]";
   out << "]\n";
-  if (!out.flush()) throw ConfigError(yaml_path, "write failed");
+  if (!out.flush()) throw OutputError(yaml_path, std::string("write failed: ") + std::strerror(errno));
   out.close();
   detector::loadObjectDefinition(yaml_path);  // the detector must accept what we wrote
 }

@@ -1,6 +1,7 @@
 #include "robot/enon_model.h"
 
 #include <cmath>
+#include <cstdio>
 
 #include "core/error.h"
 #include "core/yaml.h"
@@ -41,6 +42,19 @@ JointLimits readLimits(const YamlFile& f, const YAML::Node& node, const std::str
 double positive(const YamlFile& f, const YAML::Node& node, const std::string& field) {
   const double v = f.number(node, field);
   if (v <= 0) f.fail(field, "must be positive");
+  return v;
+}
+
+// A value in [lo, hi]: periods and rates bound the loops and the frames a run makes.
+double bounded(const YamlFile& f, const YAML::Node& node, const std::string& field, double lo,
+               double hi, const std::string& unit) {
+  const double v = f.number(node, field);
+  if (v <= 0) f.fail(field, "must be positive");
+  if (v < lo || v > hi) {
+    char buf[128];
+    std::snprintf(buf, sizeof buf, "must be in [%g, %g] %s", lo, hi, unit.c_str());
+    f.fail(field, buf);
+  }
   return v;
 }
 
@@ -101,8 +115,8 @@ EnonModel loadEnonModel(const std::string& path) {
   const YAML::Node& r = f.root();
   EnonModel m;
   m.path = path;
-  m.control_period_s = positive(f, r, "control_period_s");
-  m.watchdog_period_s = positive(f, r, "watchdog_period_s");
+  m.control_period_s = bounded(f, r, "control_period_s", 1e-3, 1.0, "s");
+  m.watchdog_period_s = bounded(f, r, "watchdog_period_s", m.control_period_s, 60.0, "s (from control_period_s)");
 
   m.base.track_width_m = positive(f, r, "base.track_width_m");
   m.base.max_linear_speed_mps = positive(f, r, "base.max_linear_speed_mps");
@@ -116,7 +130,7 @@ EnonModel loadEnonModel(const std::string& path) {
   m.head.pan = readLimits(f, r, "head.pan");
   m.head.tilt = readLimits(f, r, "head.tilt");
   m.head.tMc = f.pose(r, "head.camera_mount");
-  m.head.frame_rate_hz = positive(f, r, "head.frame_rate_hz");
+  m.head.frame_rate_hz = bounded(f, r, "head.frame_rate_hz", 0.1, 1000.0, "Hz");
   m.head.rig_path = f.resolve(f.string(r, "head.stereo_rig"));
   try {
     m.head.rig = loadStereoRig(m.head.rig_path);
@@ -134,6 +148,7 @@ EnonModel loadEnonModel(const std::string& path) {
   if (!joints.IsDefined() || joints.IsNull()) f.fail("arm.joints", "missing (expected a list)");
   if (!joints.IsSequence() || joints.size() == 0)
     f.fail("arm.joints", "expected a non-empty list of DH rows");
+  if (joints.size() > 32) f.fail("arm.joints", std::to_string(joints.size()) + " joints, at most 32");
   for (size_t i = 0; i < joints.size(); ++i) {
     const std::string prefix = "arm.joints[" + std::to_string(i) + "]";
     const YAML::Node row = joints[i];
@@ -168,6 +183,7 @@ EnonModel loadEnonModel(const std::string& path) {
   if (m.gripper.finger_length_m <= m.gripper.palm_offset_m)
     f.fail("gripper.finger_length_m",
            "must exceed palm_offset_m (the fingertips reach past the gripper frame e)");
+  f.rejectUnknownFields();
   return m;
 }
 

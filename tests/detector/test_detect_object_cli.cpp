@@ -240,6 +240,6 @@ TEST_F(DetectObjectCli, DetectorConfigFileAndCommandLineOverrides) {
   std::ofstream(dir() / "typo.yaml") << "match: {min_inlirs: 5}\n";
   r = run("--detector-config " + path("typo.yaml") + args);
   EXPECT_EQ(r.status, 2);
-  EXPECT_EQ(r.err, "detect_object: " + path("typo.yaml") + ": match.min_inlirs: unknown field\n");
+  EXPECT_EQ(r.err, "detect_object: " + path("typo.yaml") + ": match.min_inlirs: unknown field (did you mean min_inliers?)\n");
   EXPECT_TRUE(r.lines.empty());
 }

@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/image_io.h"
 
 namespace refgrasp::files {
 
@@ -32,12 +33,14 @@ std::string checkImage(const cv::Mat& m, const Intrinsics& cam) {
   return "";
 }
 
-cv::Mat readImage(const std::string& path) {
-  try {
-    return cv::imread(path, cv::IMREAD_ANYCOLOR);  // 8-bit gray or BGR, as stored
-  } catch (const cv::Exception&) {
-    return cv::Mat();
-  }
+
+// Reads an 8-bit gray or BGR image (as stored) for `cam`; "" or "<path>: <problem>".
+std::string loadFrameImage(const std::string& path, const Intrinsics& cam, cv::Mat* out) {
+  ImageRead img = readImage(path, ImageMode::kAnyColor);
+  if (!img.ok()) return img.error;
+  *out = std::move(img.image);
+  const std::string problem = checkImage(*out, cam);
+  return problem.empty() ? "" : path + ": " + problem;
 }
 
 std::string trim(const std::string& s) {
@@ -61,12 +64,8 @@ class FolderSource : public robot::FrameSource {
     if (next_ >= list_.files.size()) return ReturnType::kDeactivate;
     const size_t i = next_++;
     robot::MonoFrame f;
-    f.image = readImage(list_.files[i]);
-    const std::string problem = checkImage(f.image, cam_);
-    if (!problem.empty()) {
-      error_ = list_.files[i] + ": " + problem;
-      return ReturnType::kError;
-    }
+    error_ = loadFrameImage(list_.files[i], cam_, &f.image);
+    if (!error_.empty()) return ReturnType::kError;
     f.stamp = list_.stamps[i];
     f.index = static_cast<int64_t>(i);
     *frame = std::move(f);
@@ -101,18 +100,9 @@ class StereoFolderSource : public robot::StereoSource {
       return ReturnType::kError;
     }
     robot::StereoFrame f;
-    f.left = readImage(left_.files[i]);
-    f.right = readImage(right_.files[i]);
-    std::string problem = checkImage(f.left, rig_.left);
-    if (!problem.empty()) {
-      error_ = left_.files[i] + ": " + problem;
-      return ReturnType::kError;
-    }
-    problem = checkImage(f.right, rig_.right);
-    if (!problem.empty()) {
-      error_ = right_.files[i] + ": " + problem;
-      return ReturnType::kError;
-    }
+    error_ = loadFrameImage(left_.files[i], rig_.left, &f.left);
+    if (error_.empty()) error_ = loadFrameImage(right_.files[i], rig_.right, &f.right);
+    if (!error_.empty()) return ReturnType::kError;
     f.stamp = left_.stamps[i];
     f.index = static_cast<int64_t>(i);
     *frame = std::move(f);

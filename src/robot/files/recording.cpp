@@ -14,6 +14,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/image_io.h"
 #include "robot/files/frame_json.h"
 
 namespace refgrasp::files {
@@ -406,12 +407,13 @@ const std::string& Recording::calibrationFile(const std::string& key) const {
 bool Recording::readImage(const std::string& rel, const Intrinsics& cam, cv::Mat* out,
                           std::string* error) const {
   const std::string path = (fs::path(dir_) / rel).string();
-  try {
-    *out = cv::imread(path, cv::IMREAD_UNCHANGED);
-  } catch (const cv::Exception&) {
-    out->release();
+  ImageRead img = refgrasp::readImage(path, ImageMode::kUnchanged);  // not this member
+  if (!img.ok()) {
+    *error = img.error;
+    return false;
   }
-  if (out->empty() || out->depth() != CV_8U || (out->channels() != 1 && out->channels() != 3)) {
+  *out = std::move(img.image);
+  if (out->depth() != CV_8U || (out->channels() != 1 && out->channels() != 3)) {
     *error = path + ": cannot decode as an 8-bit gray or BGR image";
     return false;
   }

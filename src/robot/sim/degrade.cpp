@@ -13,8 +13,9 @@ namespace refgrasp::sim {
 void Degradation::check() const {
   refgrasp::check(std::isfinite(noise_sigma) && noise_sigma >= 0, "Degradation.noise_sigma",
                   "must be finite and >= 0");
-  refgrasp::check(std::isfinite(motion_blur_px) && motion_blur_px >= 0,
-                  "Degradation.motion_blur_px", "must be finite and >= 0");
+  refgrasp::check(std::isfinite(motion_blur_px) && motion_blur_px >= 0 &&
+                      motion_blur_px <= kMaxMotionBlurPx,
+                  "Degradation.motion_blur_px", "must be in [0, 256]");
   refgrasp::check(std::isfinite(motion_blur_angle_rad), "Degradation.motion_blur_angle_rad",
                   "must be finite");
   refgrasp::check(std::isfinite(brightness_gain) && brightness_gain > 0,
@@ -25,6 +26,7 @@ void Degradation::check() const {
 
 cv::Mat motionBlurKernel(double length_px, double angle_rad) {
   if (!(length_px >= 0.5)) return cv::Mat::ones(1, 1, CV_32F);
+  length_px = std::min(length_px, kMaxMotionBlurPx);  // the casts below stay far inside int
   // Snap near-axis directions so that angle and angle + pi give the identical kernel.
   const auto snap = [](double v) { return std::abs(v) < 1e-9 ? 0.0 : v; };
   const double c = snap(std::cos(angle_rad)), s = snap(std::sin(angle_rad));

@@ -1,12 +1,13 @@
 #include "robot/sim/scenario.h"
 
 #include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <map>
-#include <opencv2/imgcodecs.hpp>
 #include <set>
 
 #include "core/error.h"
+#include "core/image_io.h"
 #include "core/yaml.h"
 
 namespace refgrasp::sim {
@@ -36,6 +37,9 @@ namespace fs = std::filesystem;
 
 constexpr double kPlaneThickness = 0.001;  // solid of a plane object, behind its face
 constexpr double kSlab = 0.5;              // thickness of the floor's and the walls' solids
+// Bounds that keep a run finite and its buffers small (README "Scenarios").
+constexpr double kMaxDurationS = 3600;
+constexpr size_t kMaxObjects = 256;
 
 // Reads one scenario; every accessor throws ConfigError naming the file and the dotted field.
 class Reader {
@@ -63,10 +67,17 @@ class Reader {
   double number(const YAML::Node& node, const std::string& where, const std::string& key, double fallback) const {
     return prefixed(where, [&] { return f_.number(node, key, fallback); });
   }
-  double nonNegative(const YAML::Node& node, const std::string& where, const std::string& key, double fallback) const {
+  double nonNegative(const YAML::Node& node, const std::string& where, const std::string& key, double fallback,
+                     double max = 1e9) const {
     const double v = number(node, where, key, fallback);
     if (v < 0) f_.fail(join(where, key), "must be >= 0");
+    if (v > max) f_.fail(join(where, key), "must be at most " + shortNumber(max));
     return v;
+  }
+  static std::string shortNumber(double v) {
+    char buf[32];
+    std::snprintf(buf, sizeof buf, "%g", v);
+    return buf;
   }
   std::string string(const YAML::Node& node, const std::string& where, const std::string& key) const {
     return prefixed(where, [&] { return f_.string(node, key); });
@@ -98,11 +109,11 @@ class Reader {
     const auto it = textures_.find(path);
     if (it != textures_.end()) return it->second;
     std::error_code ec;
-    if (!fs::is_regular_file(path, ec)) f_.fail(join(where, key), "texture file not found: " + path);
-    cv::Mat img = cv::imread(path, cv::IMREAD_GRAYSCALE);
-    if (img.empty()) f_.fail(join(where, key), "cannot read image: " + path);
-    textures_[path] = img;
-    return img;
+    if (!fs::exists(path, ec)) f_.fail(join(where, key), "texture file not found: " + path);
+    const ImageRead img = readImage(path, ImageMode::kGray);
+    if (!img.ok()) f_.fail(join(where, key), "cannot read image: " + img.error);
+    textures_[path] = img.image;
+    return img.image;
   }
 
   static std::string join(const std::string& where, const std::string& key) {
@@ -259,7 +270,8 @@ Scenario loadScenario(const std::string& path) {
   if (seed < 0 || seed != std::floor(seed) || seed > 9e15) r.file().fail("seed", "expected a non-negative integer");
   s.seed = static_cast<uint64_t>(seed);
   s.max_duration_s = r.number(root, "", "max_duration_s", 120);
-  if (s.max_duration_s <= 0) r.file().fail("max_duration_s", "must be positive");
+  if (s.max_duration_s <= 0 || s.max_duration_s > kMaxDurationS)
+    r.file().fail("max_duration_s", "must be in (0, " + Reader::shortNumber(kMaxDurationS) + "] s");
 
   const YAML::Node start = r.section(root, "robot_start", "");
   r.onlyKeys(start, "robot_start", {"x", "y", "theta"});
@@ -272,6 +284,8 @@ Scenario loadScenario(const std::string& path) {
   const YAML::Node objects = root["objects"];
   if (!objects || objects.IsNull()) r.file().fail("objects", "missing (expected a list of objects)");
   if (!objects.IsSequence() || objects.size() == 0) r.file().fail("objects", "expected a non-empty list");
+  if (objects.size() > kMaxObjects)
+    r.file().fail("objects", std::to_string(objects.size()) + " objects, at most " + std::to_string(kMaxObjects));
   std::set<std::string> names;
   for (size_t i = 0; i < objects.size(); ++i) {
     const std::string where = "objects[" + std::to_string(i) + "]";
@@ -287,23 +301,23 @@ Scenario loadScenario(const std::string& path) {
     const std::string w = "camera";
     r.onlyKeys(cam, w, {"noise_sigma", "motion_blur_px", "motion_blur_angle_rad", "brightness_gain",
                         "brightness_offset", "exposure_s"});
-    s.camera.noise_sigma = r.nonNegative(cam, w, "noise_sigma", 0);
-    s.camera.motion_blur_px = r.nonNegative(cam, w, "motion_blur_px", 0);
+    s.camera.noise_sigma = r.nonNegative(cam, w, "noise_sigma", 0, 255);
+    s.camera.motion_blur_px = r.nonNegative(cam, w, "motion_blur_px", 0, kMaxMotionBlurPx);
     s.camera.motion_blur_angle_rad = r.number(cam, w, "motion_blur_angle_rad", 0);
     s.camera.brightness_gain = r.number(cam, w, "brightness_gain", 1);
     if (s.camera.brightness_gain <= 0) r.file().fail("camera.brightness_gain", "must be positive");
     s.camera.brightness_offset = r.number(cam, w, "brightness_offset", 0);
-    s.exposure_s = r.nonNegative(cam, w, "exposure_s", 0.01);
+    s.exposure_s = r.nonNegative(cam, w, "exposure_s", 0.01, 1.0);
   }
   if (root["faults"]) {
     const YAML::Node f = r.section(root, "faults", "");
     const std::string w = "faults";
     r.onlyKeys(f, w, {"command_latency_s", "frame_drop_probability", "frame_delay_s", "odom_noise_m_per_m",
                       "odom_noise_rad_per_rad", "stuck_joint", "stuck_after_s"});
-    s.faults.command_latency_s = r.nonNegative(f, w, "command_latency_s", 0);
+    s.faults.command_latency_s = r.nonNegative(f, w, "command_latency_s", 0, 10);
     s.faults.frame_drop_probability = r.nonNegative(f, w, "frame_drop_probability", 0);
     if (s.faults.frame_drop_probability > 1) r.file().fail("faults.frame_drop_probability", "must be in [0, 1]");
-    s.faults.frame_delay_s = r.nonNegative(f, w, "frame_delay_s", 0);
+    s.faults.frame_delay_s = r.nonNegative(f, w, "frame_delay_s", 0, 10);
     s.faults.odom_noise_m_per_m = r.nonNegative(f, w, "odom_noise_m_per_m", 0);
     s.faults.odom_noise_rad_per_rad = r.nonNegative(f, w, "odom_noise_rad_per_rad", 0);
     s.faults.stuck_joint = r.string(f, w, "stuck_joint", "");

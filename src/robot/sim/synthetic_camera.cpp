@@ -65,7 +65,7 @@ cv::Mat SyntheticStereoCamera::renderEye(const Intrinsics& cam, const World& wor
   const double bu = du + deg_.motion_blur_px * std::cos(deg_.motion_blur_angle_rad);
   const double bv = dv + deg_.motion_blur_px * std::sin(deg_.motion_blur_angle_rad);
   Degradation d = deg_;
-  d.motion_blur_px = std::hypot(bu, bv);
+  d.motion_blur_px = std::min(std::hypot(bu, bv), kMaxMotionBlurPx);  // a near object, a fast turn
   d.motion_blur_angle_rad = std::atan2(bv, bu);
   degrade(img, d, rng);
   return img;

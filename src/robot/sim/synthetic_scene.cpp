@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
+#include "core/image_io.h"
 #include "robot/sim/degrade.h"
 
 namespace refgrasp::testing {
@@ -47,13 +48,11 @@ cv::Mat loadMedia(const std::string& relpath) {
   const auto it = cache.find(relpath);
   if (it != cache.end()) return it->second;
   const std::string path = mediaDir() + "/" + relpath;
-  std::error_code ec;
-  cv::Mat img;
-  if (std::filesystem::is_regular_file(path, ec)) img = cv::imread(path, cv::IMREAD_GRAYSCALE);
-  if (img.empty())
-    throw std::runtime_error(path + ": missing or unreadable media texture (run build/app/make_media --out media)");
-  cache[relpath] = img;
-  return img;
+  const ImageRead img = readImage(path, ImageMode::kGray);
+  if (!img.ok())
+    throw std::runtime_error(img.error + " (a media texture: run build/app/make_media --out media)");
+  cache[relpath] = img.image;
+  return img.image;
 }
 
 const std::vector<std::string>& targetTextures() {

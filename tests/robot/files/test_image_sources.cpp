@@ -114,7 +114,8 @@ TEST(ImageFolder, AFrameOfTheWrongSizeIsAnErrorAndTheNextFrameIsRead) {
   EXPECT_EQ(src->grab(0, &f), ReturnType::kOk);
   EXPECT_EQ(f->index, 2);
   EXPECT_EQ(src->grab(0, &f), ReturnType::kError);
-  EXPECT_EQ(src->lastError(), (d / "img_3.png").string() + ": cannot decode as an image");
+  EXPECT_EQ(src->lastError(),
+            (d / "img_3.png").string() + ": not an image in a supported format (PNG, JPEG, BMP, PNM, TIFF, WebP)");
   EXPECT_EQ(src->grab(0, &f), ReturnType::kDeactivate);
 }
 
