@@ -2,14 +2,15 @@
 #include <CLI/CLI.hpp>
 #include <cstdio>
 #include <iostream>
-#include <opencv2/imgcodecs.hpp>
 
 #include "core/camera.h"
 #include "core/error.h"
+#include "core/image_io.h"
 #include "detector/detection_json.h"
 #include "detector/detector.h"
 #include "detector/detector_config.h"
 #include "detector_cli.h"
+#include "tool/tool.h"
 
 using namespace refgrasp;
 using namespace refgrasp::detector;
@@ -31,20 +32,17 @@ Detector options: --detector-config FILE (every field: config/detector.yaml); th
 override the file. Images and options may come in any order.
 Exit status: 0 when every image was read and processed; 1 when an image could not be read or
 used (one-line error on stderr naming the file, other images are still processed); 2 for bad
-options or object/camera/detector-config files.)";
+options or object/camera/detector-config files; 3 when stdout could not be written.
+Images larger than $REFGRASP_MAX_IMAGE_PIXELS pixels (default 2^25) are refused from their header.)";
 
-// Reads an image as 8-bit gray; empty Mat when it cannot be read.
+// Reads an image as 8-bit gray; prints "<file>: cannot read image: <problem>" when it cannot.
 cv::Mat readGray(const std::string& path) {
-  try {
-    return cv::imread(path, cv::IMREAD_GRAYSCALE);
-  } catch (const cv::Exception&) {
-    return cv::Mat();
-  }
+  ImageRead r = readImage(path, ImageMode::kGray);
+  if (!r.ok()) std::cerr << oneLine(path, 1000) << ": cannot read image: " << r.problem << "\n";
+  return r.image;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+int detectObject(int argc, char** argv) {
   CLI::App app(kDescription, "detect_object");
   std::vector<std::string> object_files, images, rights;
   std::string camera_file, rig_file;
@@ -69,56 +67,45 @@ int main(int argc, char** argv) {
       app.add_option("--max-instances", cli.match.max_instances, "instances reported per object")
           ->check(CLI::Range(1, 100));
   CLI::Option* o_ratio = app.add_option("--ratio", cli.match.global_ratio, "global descriptor ratio test")
-                             ->check(CLI::Range(0.1, 1.0));
+                             ->check(tool::Finite(0.1, 1.0));
   CLI::Option* o_features =
       app.add_option("--max-features", cli.sift.max_features, "scene SIFT features kept (0 = all)")
           ->check(CLI::NonNegativeNumber);
   CLI::Option* o_inliers = app.add_option("--min-inliers", cli.match.min_inliers, "homography inliers needed")
                                ->check(CLI::Range(4, 100000));
   app.add_option("IMAGE", images, "scene image(s) (left images with --stereo)")->required();
-  CLI11_PARSE(app, argc, argv);
+  tool::parse(app, argc, argv);
 
   const bool stereo = !rig_file.empty();
-  if (stereo != !rights.empty() || (stereo && rights.size() != images.size())) {
-    std::cerr << "detect_object: --stereo needs one --right image per IMAGE (and vice versa)\n";
-    return 2;
-  }
-  if (stereo && !camera_file.empty()) {
-    std::cerr << "detect_object: --camera and --stereo are exclusive (the rig holds the cameras)\n";
-    return 2;
-  }
+  if (stereo != !rights.empty() || (stereo && rights.size() != images.size()))
+    throw std::invalid_argument("--stereo needs one --right image per IMAGE (and vice versa)");
+  if (stereo && !camera_file.empty())
+    throw std::invalid_argument("--camera and --stereo are exclusive (the rig holds the cameras)");
 
   std::unique_ptr<Detector> detector;
   std::vector<std::string> names;
   std::optional<Intrinsics> camera;
   StereoRig rig;
-  DetectorOptions opt;
-  try {
-    opt = detector_cli.options();
-    if (o_instances->count()) opt.match.max_instances = cli.match.max_instances;
-    if (o_ratio->count()) opt.match.global_ratio = cli.match.global_ratio;
-    if (o_features->count()) opt.sift.max_features = cli.sift.max_features;
-    if (o_inliers->count()) opt.match.min_inliers = cli.match.min_inliers;
-    detector = std::make_unique<Detector>(opt);
-    for (const auto& f : object_files) {
-      const ObjectModel m = loadObjectDefinition(f);
-      if (!camera && m.camera) camera = m.camera;
-      names.push_back(m.name);
-      detector->addObject(m);
-    }
-    if (!camera_file.empty()) camera = loadCameraFile(camera_file);
-    if (stereo) rig = loadStereoRig(rig_file);
-  } catch (const std::exception& e) {
-    std::cerr << "detect_object: " << e.what() << "\n";
-    return 2;
+  DetectorOptions opt = detector_cli.options();
+  if (o_instances->count()) opt.match.max_instances = cli.match.max_instances;
+  if (o_ratio->count()) opt.match.global_ratio = cli.match.global_ratio;
+  if (o_features->count()) opt.sift.max_features = cli.sift.max_features;
+  if (o_inliers->count()) opt.match.min_inliers = cli.match.min_inliers;
+  detector = std::make_unique<Detector>(opt);
+  for (const auto& f : object_files) {
+    const ObjectModel m = loadObjectDefinition(f);
+    if (!camera && m.camera) camera = m.camera;
+    names.push_back(m.name);
+    detector->addObject(m);
   }
+  if (!camera_file.empty()) camera = loadCameraFile(camera_file);
+  if (stereo) rig = loadStereoRig(rig_file);
   const bool tagged = names.size() > 1 || opt.match.max_instances > 1;
 
   int status = 0;
   for (size_t i = 0; i < images.size(); ++i) {
     const cv::Mat left = readGray(images[i]);
     if (left.empty()) {
-      std::cerr << images[i] << ": cannot read image (missing, unreadable or corrupt)\n";
       status = 1;
       continue;
     }
@@ -127,7 +114,6 @@ int main(int argc, char** argv) {
     if (stereo) {
       const cv::Mat right = readGray(rights[i]);
       if (right.empty()) {
-        std::cerr << rights[i] << ": cannot read image (missing, unreadable or corrupt)\n";
         status = 1;
         continue;
       }
@@ -156,3 +142,7 @@ int main(int argc, char** argv) {
   }
   return status;
 }
+
+}  // namespace
+
+int main(int argc, char** argv) { return tool::run("detect_object", argc, argv, detectObject); }

@@ -11,8 +11,12 @@
 #include <string>
 #include <vector>
 
+#include "core/error.h"
+#include "tool/tool.h"
+
 namespace {
 
+using namespace refgrasp;
 using Rng = std::mt19937_64;
 
 double uni(Rng& rng, double a, double b) { return std::uniform_real_distribution<double>(a, b)(rng); }
@@ -384,13 +388,12 @@ cv::Mat boxFace(int w, int h, uint64_t seed, const std::string& label) {
   return img;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  CLI::App app{"Generate the project's grayscale textures (deterministic, fixed seeds)"};
+int makeMedia(int argc, char** argv) {
+  CLI::App app{"Generate the project's grayscale textures (deterministic, fixed seeds).\n"
+               "Exit status: 0 written; 2 bad options; 3 a texture could not be written."};
   std::string out = "media";
   app.add_option("--out", out, "output directory (media/ of the source tree)");
-  CLI11_PARSE(app, argc, argv);
+  tool::parse(app, argc, argv);
 
   namespace fs = std::filesystem;
   struct Item {
@@ -423,13 +426,11 @@ int main(int argc, char** argv) {
   uintmax_t total = 0;
   for (const Item& it : all) {
     const fs::path p = fs::path(out) / it.path;
-    fs::create_directories(p.parent_path());
+    tool::makeOutputDir(p.parent_path().string());
     const cv::Mat img = it.make();
     CV_Assert(img.type() == CV_8UC1);
-    if (!cv::imwrite(p.string(), img, {cv::IMWRITE_PNG_COMPRESSION, 9})) {
-      std::cerr << p.string() << ": cannot write\n";
-      return 1;
-    }
+    if (!cv::imwrite(p.string(), img, {cv::IMWRITE_PNG_COMPRESSION, 9}))
+      throw OutputError(p.string(), "cannot write the texture");
     total += fs::file_size(p);
     std::cout << "wrote " << p.string() << " (" << img.cols << "x" << img.rows << ", "
               << fs::file_size(p) / 1024 << " KiB)\n";
@@ -437,3 +438,7 @@ int main(int argc, char** argv) {
   std::cout << all.size() << " textures, " << total / 1024 << " KiB in total\n";
   return 0;
 }
+
+}  // namespace
+
+int main(int argc, char** argv) { return refgrasp::tool::run("make_media", argc, argv, makeMedia); }

@@ -1,5 +1,6 @@
 // make_reference: an object definition (reference image + 6-DOF reference pose) from one photo.
 #include <CLI/CLI.hpp>
+#include <cmath>
 #include <filesystem>
 #include <iostream>
 #include <opencv2/imgcodecs.hpp>
@@ -7,7 +8,9 @@
 
 #include "core/camera.h"
 #include "core/error.h"
+#include "core/image_io.h"
 #include "reference/make_reference.h"
+#include "tool/tool.h"
 
 using namespace refgrasp;
 namespace fs = std::filesystem;
@@ -26,7 +29,8 @@ Object frame: origin at the centre of the rectangle (tag), x along its top edge,
 edge, z into the plane. Also writes a picture (--check, default OUTPUT with .png) with the pattern
 region, the rectangle/tag and the object axes (x red, y green, z blue) to check the result.
 Exit status: 0 written; 2 bad options or files, or input that defines no reference (corners not a
-convex quadrilateral, a tag not found, sizes <= 0), with a one-line error.)";
+convex quadrilateral, a tag not found, sizes <= 0), with a one-line error; 3 an output could not
+be written.)";
 
 std::vector<double> numbers(const std::string& text, const std::string& option, size_t n_min,
                             size_t n_exact = 0) {
@@ -36,9 +40,9 @@ std::vector<double> numbers(const std::string& text, const std::string& option, 
     try {
       size_t used = 0;
       v.push_back(std::stod(item, &used));
-      if (used != item.size()) throw std::invalid_argument(item);
+      if (used != item.size() || !std::isfinite(v.back())) throw std::invalid_argument(item);
     } catch (const std::exception&) {
-      throw std::invalid_argument(option + ": '" + item + "' is not a number");
+      throw std::invalid_argument(option + ": '" + item + "' is not a finite number");
     }
   }
   if ((n_exact && v.size() != n_exact) || v.size() < n_min || v.size() % 2 != 0)
@@ -47,9 +51,7 @@ std::vector<double> numbers(const std::string& text, const std::string& option, 
   return v;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+int makeReference(int argc, char** argv) {
   CLI::App app(kDescription, "make_reference");
   std::string photo_file, camera_file, output, name, check, corners, size, family, region;
   double tag_size = 0;
@@ -62,7 +64,8 @@ int main(int argc, char** argv) {
   auto* c = app.add_option("--corners", corners, "u1,v1,...,u4,v4: rectangle corners TL, TR, BR, BL (px)");
   auto* s = app.add_option("--size", size, "W,H: the rectangle's width and height (metres)");
   auto* a = app.add_option("--apriltag", family, "tag family (36h11, 25h9, 16h5, circle21h7)");
-  auto* t = app.add_option("--tag-size", tag_size, "side of the tag's black square (metres)");
+  auto* t = app.add_option("--tag-size", tag_size, "side of the tag's black square (metres)")
+                ->check(tool::Finite(1e-4, 100));
   app.add_option("--tag-id", tag_id, "the tag to use when the photo shows several");
   app.add_option("--region", region, "u,v,u,v,...: pattern region polygon (px; default: photo minus tag)");
   c->needs(s);
@@ -70,7 +73,7 @@ int main(int argc, char** argv) {
   a->needs(t);
   t->needs(a);
   c->excludes(a);
-  CLI11_PARSE(app, argc, argv);
+  tool::parse(app, argc, argv);
   if (corners.empty() && family.empty()) {
     std::cerr << "make_reference: give --corners and --size, or --apriltag and --tag-size\n";
     return 2;
@@ -79,12 +82,9 @@ int main(int argc, char** argv) {
   if (check.empty()) check = fs::path(output).replace_extension(".png").string();
   try {
     const Intrinsics cam = loadCameraFile(camera_file);
-    cv::Mat photo;
-    try {
-      photo = cv::imread(photo_file, cv::IMREAD_COLOR);
-    } catch (const cv::Exception&) {
-    }
-    if (photo.empty()) throw ConfigError(photo_file, "cannot read image (missing, unreadable or corrupt)");
+    const ImageRead read = readImage(photo_file, ImageMode::kColor);
+    if (!read.ok()) throw ConfigError(photo_file, "cannot read image: " + read.problem);
+    const cv::Mat& photo = read.image;
     if (photo.cols != cam.width || photo.rows != cam.height)
       throw ConfigError(camera_file, "image size " + std::to_string(cam.width) + "x" +
                                          std::to_string(cam.height) + " differs from the photo's " +
@@ -108,13 +108,18 @@ int main(int argc, char** argv) {
       ref = reference::fromTag(photo, cam, o);
     }
     reference::writeObjectDefinition(output, name, photo_file, camera_file, ref);
-    if (!cv::imwrite(check, reference::drawReference(photo, ref, cam)))
-      throw ConfigError(check, "cannot write");
+    tool::writeImage(check, reference::drawReference(photo, ref, cam));
     std::cerr << "make_reference: " << output << " (" << ref.method << ", object at "
               << ref.cMo.t.norm() << " m, corner RMS " << ref.rms_px << " px); check " << check << "\n";
+  } catch (const OutputError&) {
+    throw;  // exit 3
   } catch (const std::exception& e) {
     std::cerr << "make_reference: " << e.what() << "\n";
     return 2;
   }
   return 0;
 }
+
+}  // namespace
+
+int main(int argc, char** argv) { return tool::run("make_reference", argc, argv, makeReference); }

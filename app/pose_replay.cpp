@@ -15,6 +15,7 @@
 #include "robot/sources.h"
 #include "servo/replay.h"
 #include "servo/replay_report.h"
+#include "tool/tool.h"
 
 using namespace refgrasp;
 
@@ -85,11 +86,7 @@ class ProgressBar {
   std::chrono::steady_clock::time_point t0_ = std::chrono::steady_clock::now();
 };
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  // FFmpeg prints its own diagnostics for undecodable files; ours is the one-line error.
-  setenv("OPENCV_FFMPEG_LOGLEVEL", "-8", 0);
+int poseReplay(int argc, char** argv) {
   CLI::App app(std::string(kDescription) + robot::sourceSpecHelp() + kExit, "pose_replay");
   std::vector<std::string> object_files;
   std::string camera_file, input, outdir, rig_file;
@@ -108,7 +105,7 @@ int main(int argc, char** argv) {
   app.add_flag("--no-track", no_track, "detect on every frame (no tracking between detections)");
   app.add_flag("--frames", png_frames, "overlay as OUTDIR/frames/NNNNNN.png instead of overlay.mp4");
   detector_cli.add(app);
-  CLI11_PARSE(app, argc, argv);
+  tool::parse(app, argc, argv);
   const bool stereo = !rig_file.empty();
 
   std::unique_ptr<detector::Detector> det;
@@ -176,3 +173,8 @@ int main(int argc, char** argv) {
             << "\n";
   return run.failed > 0 ? 1 : 0;
 }
+
+}  // namespace
+
+// FFmpeg's and OpenCV's own diagnostics are silenced by tool::run: ours is the one-line error.
+int main(int argc, char** argv) { return tool::run("pose_replay", argc, argv, poseReplay); }

@@ -11,6 +11,7 @@
 #include "robot/files/record.h"
 #include "robot/files/recording.h"
 #include "robot/sources.h"
+#include "tool/tool.h"
 
 using namespace refgrasp;
 
@@ -28,9 +29,7 @@ std::atomic<bool> g_stop{false};
 
 void onSignal(int) { g_stop = true; }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+int record(int argc, char** argv) {
   CLI::App app(kDescription, "record");
   std::string spec, out, camera_file, rig_file;
   std::vector<std::string> sets;
@@ -48,14 +47,12 @@ int main(int argc, char** argv) {
   app.add_option("--frames", limits.max_frames, "stop after N frames (0 = until the source ends)")
       ->check(CLI::NonNegativeNumber);
   app.add_option("--seconds", limits.max_seconds, "stop after S seconds of wall-clock time (0 = no limit)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(tool::Finite(0, 1e9));
   app.add_option("--png-compression", ro.png_compression, "PNG level 0-9 (lossless at every level)")
       ->check(CLI::Range(0, 9));
   app.add_flag("--no-fsync", no_fsync, "do not fsync each frame (survives a killed recorder, not a power loss)");
-  CLI11_PARSE(app, argc, argv);
+  tool::parse(app, argc, argv);
 
-  // A file size limit (ulimit -f) must fail the write (EFBIG), not kill the recorder.
-  std::signal(SIGXFSZ, SIG_IGN);
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
 
@@ -110,3 +107,7 @@ int main(int argc, char** argv) {
   }
   return r.frame_errors > 0 || r.source_failed ? 1 : 0;
 }
+
+}  // namespace
+
+int main(int argc, char** argv) { return tool::run("record", argc, argv, record); }

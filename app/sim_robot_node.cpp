@@ -13,6 +13,7 @@
 #include "robot/dds/transport.h"
 #include "robot/sim/scenario.h"
 #include "robot/sim/sim_enon.h"
+#include "tool/tool.h"
 
 using namespace refgrasp;
 using json = nlohmann::ordered_json;
@@ -27,7 +28,8 @@ Commands older than the watchdog period (enon.yaml) are dropped: a silent contro
 robot. Real time; the robot's clock starts at 0. With --result, the simulator's ground truth at
 exit (held object, true base pose, object poses) is written as JSON.
 Cyclone DDS reads CYCLONEDDS_URI (config/dds/cyclonedds_loopback.xml for one machine).
-Exit status: 0 after SIGINT/SIGTERM or --duration; 2 bad options or files; 3 DDS failure.)";
+Exit status: 0 after SIGINT/SIGTERM or --duration; 2 bad options or files; 3 DDS failure;
+4 the --result file could not be written.)";
 
 std::atomic<bool> g_stop{false};
 extern "C" void onSignal(int) { g_stop = true; }
@@ -37,9 +39,7 @@ json poseJson(const Pose& p) {
   return {{"translation", {p.t.x(), p.t.y(), p.t.z()}}, {"rotation_vector", {r.x(), r.y(), r.z()}}};
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+int simRobotNode(int argc, char** argv) {
   CLI::App app(kDescription, "sim_robot_node");
   std::string enon = "config/enon.yaml", scenario_file, result_file;
   dds::DriverNodeOptions opt;
@@ -52,14 +52,12 @@ int main(int argc, char** argv) {
   app.add_option("--domain", opt.domain, "DDS domain id, 0..232 (default: $ROS_DOMAIN_ID, else 0)");
   app.add_option("--camera-rate", opt.camera_rate_hz,
                  "stereo frames published per second at most (0: the camera's rate, 48 Hz)")
+      ->check(tool::Finite(0, 1000))
       ->capture_default_str();
-  app.add_option("--duration", duration_s, "stop after this many seconds (0: run until a signal)");
+  app.add_option("--duration", duration_s, "stop after this many seconds (0: run until a signal)")
+      ->check(tool::Finite(0, 1e7));
   app.add_option("--result", result_file, "write the ground truth at exit to this JSON file");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;
-  }
+  tool::parse(app, argc, argv);
   if (const std::string p = dds::domainOrNamespaceProblem(opt.domain, opt.ns); !p.empty()) {
     std::fprintf(stderr, "sim_robot_node: %s\n", p.c_str());
     return 2;
@@ -105,9 +103,19 @@ int main(int argc, char** argv) {
     j["bad_commands"] = st.bad_commands;
     j["frames_published"] = st.frames_published;
     j["hardware_errors"] = st.hardware_errors;
-    std::ofstream(result_file) << j.dump(2) << "\n";
+    std::ofstream out(result_file);
+    out << j.dump(2) << "\n";
+    tool::checkWritten(out, result_file);
   }
   std::fprintf(stderr, "sim_robot_node: stopped after %ld steps, %ld commands, %ld stereo frames\n",
                st.steps, st.commands, st.frames_published);
   return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  tool::RunOptions codes;
+  codes.output_failed = 4;
+  return tool::run("sim_robot_node", argc, argv, simRobotNode, codes);
 }

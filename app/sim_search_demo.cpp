@@ -18,6 +18,7 @@
 #include "servo/search.h"
 #include "robot/sim/scenario.h"
 #include "robot/sim/sim_enon.h"
+#include "tool/tool.h"
 
 using namespace refgrasp;
 
@@ -67,10 +68,14 @@ int run(const DemoOptions& o) {
   const int id = det.addObject(detector::loadObjectDefinition(object.definition));
 
   std::unique_ptr<robot::Robot> robot = sim::makeSimRobot(model, scenario);
+  const tool::StopOnError stop_on_error([&] { robot->stop(); });
   auto* sim = dynamic_cast<sim::SimEnon*>(&robot->hardware());
-  std::filesystem::create_directories(o.out);
-  std::ofstream log(o.out + "/looks.jsonl");
+  tool::makeOutputDir(o.out);
+  const std::string log_path = o.out + "/looks.jsonl";
+  std::ofstream log(log_path);
+  tool::checkWritten(log, log_path);
   if (robot->configure() != robot::ReturnType::kOk || robot->activate() != robot::ReturnType::kOk) {
+    robot->stop();
     std::fprintf(stderr, "sim_search_demo: could not activate the simulated enon\n");
     return 2;
   }
@@ -127,20 +132,21 @@ int run(const DemoOptions& o) {
                   lMo.t.y(), lMo.t.z(), summary.c_str());
       const Intrinsics& lc = robot->camera().rig().left;
       const Intrinsics& rc = robot->camera().rig().right;
-      cv::imwrite(o.out + "/found_left.png", annotate(frame.left, s.left, lc, "left: " + summary));
-      cv::imwrite(o.out + "/found_right.png", annotate(frame.right, s.right, rc, "right"));
-      cv::imwrite(o.out + "/frame_left.png", frame.left);  // as captured, for other tools
-      cv::imwrite(o.out + "/frame_right.png", frame.right);
+      tool::writeImage(o.out + "/found_left.png", annotate(frame.left, s.left, lc, "left: " + summary));
+      tool::writeImage(o.out + "/found_right.png", annotate(frame.right, s.right, rc, "right"));
+      tool::writeImage(o.out + "/frame_left.png", frame.left);  // as captured, for other tools
+      tool::writeImage(o.out + "/frame_right.png", frame.right);
       exit_code = 0;
     } else {
       char name[64];
       std::snprintf(name, sizeof(name), "/look_%02d_left.png", look.number);
-      cv::imwrite(o.out + name, frame.left);
+      tool::writeImage(o.out + name, frame.left);
     }
     log << line.dump() << '\n';
   }
   robot->stop();
   robot->deactivate();
+  tool::checkWritten(log, log_path);
   if (exit_code != 0)
     std::printf("sim_search_demo: target not found after %d looks (%.0f s simulated)\n",
                 search.looks(), max_time);
@@ -149,36 +155,37 @@ int run(const DemoOptions& o) {
   return exit_code;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+int simSearchDemo(int argc, char** argv) {
   CLI::App app{
       "Simulated search demo: the simulated enon sweeps its head (then turns its base) until the\n"
       "detector finds the scenario's target in its Bumblebee2 stereo pair; prints the fused pose\n"
       "and its error against the simulator's ground truth; writes found_left.png, found_right.png\n"
       "(annotated), frame_left.png, frame_right.png (the pair as captured), look_NN_left.png and\n"
       "looks.jsonl to --out. Exit 0 when found, 1 when not,\n"
-      "2/3 on a robot error (the robot is stopped first), 4 on a bad file."};
+      "2/3 on a robot error (the robot is stopped first), 4 on a bad option or file,\n"
+      "5 when an output could not be written."};
   DemoOptions o;
   app.add_option("--enon", o.enon, "robot model YAML")->capture_default_str();
   app.add_option("--scenario", o.scenario, "scenario YAML")->capture_default_str();
   app.add_option("--out", o.out, "output directory")->capture_default_str();
   app.add_option("--max-time", o.max_time_s, "simulated seconds before giving up")
-      ->check(CLI::PositiveNumber)
+      ->check(tool::Finite(0.1, 3600))
       ->capture_default_str();
   app.add_option("--tilt", o.tilt_rad, "head tilt while searching, rad (> 0 looks down)")
+      ->check(tool::Finite(-1.5, 1.5))
       ->capture_default_str();
   app.add_option("--pan-step", o.pan_step_rad, "head pan step between looks, rad")
-      ->check(CLI::PositiveNumber)
+      ->check(tool::Finite(0.05, 1.5))
       ->capture_default_str();
-  CLI11_PARSE(app, argc, argv);
-  try {
-    return run(o);
-  } catch (const ConfigError& e) {
-    std::fprintf(stderr, "sim_search_demo: %s\n", e.what());
-    return 4;
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "sim_search_demo: %s\n", e.what());
-    return 4;
-  }
+  tool::parse(app, argc, argv);
+  return run(o);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  tool::RunOptions codes;
+  codes.bad_input = codes.failure = 4;
+  codes.output_failed = 5;
+  return tool::run("sim_search_demo", argc, argv, simSearchDemo, codes);
 }

@@ -14,6 +14,7 @@
 #include "detector/detector.h"
 #include "detector/detector_config.h"
 #include "robot/dds/transport.h"
+#include "tool/tool.h"
 
 namespace refgrasp::component {
 
@@ -34,7 +35,8 @@ Bad frames give one warning (rate-limited) on stderr and found = false; serving 
 Detector options: --detector-config FILE (config/detector.yaml lists every field).
 Stops on SIGINT/SIGTERM and prints {"frames_received",...} as one JSON line on stdout.
 Cyclone DDS reads its configuration from CYCLONEDDS_URI (config/dds/cyclonedds_loopback.xml
-for one machine). Exit status: 0 clean shutdown; 2 bad options or files; 3 DDS failure.)";
+for one machine). Exit status: 0 clean shutdown; 2 bad options or files; 3 DDS failure;
+4 stdout could not be written.)";
 
 std::atomic<bool> g_stop{false};
 extern "C" void onSignal(int) { g_stop = true; }
@@ -58,11 +60,7 @@ int runVisionComponent(int argc, char** argv) {
                  "right_in_left; intrinsics come from camera_info)");
   app.add_option("--detector-config", detector_config,
                  "detector options YAML (every field: config/detector.yaml); default: built-in");
-  try {
-    app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
-    return app.exit(e) == 0 ? 0 : 2;
-  }
+  tool::parse(app, argc, argv);
   if (const std::string p = dds::domainOrNamespaceProblem(domain, ns); !p.empty()) {
     std::fprintf(stderr, "vision_component: %s\n", p.c_str());
     return 2;

@@ -1,5 +1,6 @@
 #pragma once
-// The vision_component command line (app/vision_component.cpp is `return runVisionComponent(...)`).
+// The vision_component command line; app/vision_component.cpp runs it through tool::run (one line
+// and the documented exit code for any exception).
 namespace refgrasp::component {
 
 /// Parses the options, loads the objects, serves until SIGINT or SIGTERM, prints the run's
