@@ -516,19 +516,27 @@ void sweepOctave(const si::Kernels& K, const Params& P, int o, const cv::Mat& in
   if (detect) ws.cols.resize(W + 32);
   std::vector<Candidate>& pending = ws.candidates;
 
+  // What the sweep has made of each stored layer so far in this call: every row of columns
+  // [0, done_cols[i]) (the strips before this one) and rows [0, done_rows[i]) of columns
+  // [0, strip_cols[i]). Anything else in the layer's buffer is a previous call's.
+  std::vector<int> done_cols(L, 0), done_rows(L, 0), strip_cols(L, 0);
+  auto made = [&](int i, int y1, int x1) {
+    return x1 < done_cols[i] || (x1 < strip_cols[i] && y1 < done_rows[i]);
+  };
   // The exact values of layer i on rows [y0, y1], columns [x0, x1] (inside the octave), for a
   // point the rings do not hold (a Newton step that jumped far; rare): recomputed on a patch with
-  // the sweep's kernels, from the nearest whole layer (stored, the octave below, the input), each
-  // output with the same arithmetic as in the sweep.
+  // the sweep's kernels, from the nearest layer whose values are there (a stored layer where the
+  // sweep has made those rows and columns, the octave below, the input), each output with the
+  // same arithmetic as in the sweep.
   std::function<std::vector<float>(int, int, int, int, int)> patch = [&](int i, int y0, int y1, int x0,
                                                                           int x1) {
     const int pw = x1 - x0 + 1, ph = y1 - y0 + 1;
     std::vector<float> out(static_cast<size_t>(ph) * pw + 64);
-    if (oct.g[i] || !kern[i]) {
+    if ((oct.g[i] && made(i, y1, x1)) || !kern[i]) {
       for (int y = y0; y <= y1; ++y)
         for (int x = x0; x <= x1; ++x)
           out[static_cast<size_t>(y - y0) * pw + x - x0] =
-              oct.g[i] ? oct.row(i, y)[x] : prev->row(P.n_layers, 2 * y)[2 * x];
+              kern[i] ? oct.row(i, y)[x] : prev->row(P.n_layers, 2 * y)[2 * x];
       return out;
     }
     const Kernel& k = *kern[i];
@@ -588,6 +596,9 @@ void sweepOctave(const si::Kernels& K, const Params& P, int o, const cv::Mat& in
     for (int i = 0; i < L; ++i) {
       c0[i] = std::max(0, sx0 - halo[i]);
       c1[i] = std::min(W, sx1 + halo[i]);
+      if (strip > 0) done_cols[i] = strip_cols[i];
+      strip_cols[i] = c1[i];
+      done_rows[i] = 0;
     }
     auto sourceRow = [&](int i, int m) -> const float* {
       if (i > 0) return frow(i - 1, m);
@@ -642,6 +653,7 @@ void sweepOctave(const si::Kernels& K, const Params& P, int o, const cv::Mat& in
           rows[j] = ring + static_cast<size_t>(reflect101(y0 + j - k.h, H) % ring_size[i]) * S + x0;
         for (int y = y0; y < y1; ++y) outs[y - y0] = frow(i, y) + x0;
         K.col_filter(rows.data(), outs, y1 - y0, n, k.centre.data(), k.h);
+        done_rows[i] = y1;
         for (int y = y0; y < y1; ++y) {
           if (x0 == 0) fillPad(frow(i, y), W, oct.pad, true);
           if (c1[i] == W) fillPad(frow(i, y), W, oct.pad, false);

@@ -10,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 #include <random>
 #include <string>
+#include <thread>
 
 #include "robot/sim/synthetic_scene.h"
 #include "detector/detector.h"
@@ -300,6 +301,54 @@ TEST(SiftFast, ThreadsDoNotChangeTheResult) {
     EXPECT_EQ(k1[i].angle, k2[i].angle);
   }
   EXPECT_EQ(cv::norm(d1, d2, cv::NORM_INF), 0.0);
+}
+
+// The extractor keeps its buffers between calls; nothing of a previous call may leak into the
+// next one (a Newton step that jumps far reads a stored layer only where this call has made it).
+// The statistics count the interpolation's steps too, so they see a path that a stale value bent
+// even when the keypoint was rejected in the end.
+TEST(SiftFast, TheResultDoesNotDependOnThePreviousCall) {
+  const cv::Mat a = testing::clutterBackground(900);
+  const std::vector<cv::Mat> before = {cv::Mat(), testing::clutterBackground(901),
+                                       testing::loadMedia("photos/aerial_town.jpg"),
+                                       cv::Mat(480, 640, CV_8UC1, cv::Scalar(255))};
+  struct Run {
+    std::vector<cv::KeyPoint> k;
+    cv::Mat d;
+    FastSiftStats stats;
+  };
+  std::vector<Run> runs;
+  std::thread([&] {  // a thread of its own: buffers that no other test has touched yet
+    SiftOptions opt;
+    FastSiftCall call;
+    call.isa = bestSiftIsa();
+    call.threads = 1;
+    for (const cv::Mat& b : before) {
+      std::vector<cv::KeyPoint> k;
+      cv::Mat d;
+      if (!b.empty()) fastSiftDetectAndCompute(b, opt, call, &k, &d);
+      Run r;
+      call.stats = &r.stats;
+      fastSiftDetectAndCompute(a, opt, call, &r.k, &r.d);
+      call.stats = nullptr;
+      runs.push_back(std::move(r));
+    }
+  }).join();
+  ASSERT_EQ(runs.size(), before.size());
+  ASSERT_GT(runs[0].stats.far_steps, 0);  // the case in question occurs on this image
+  for (size_t i = 1; i < runs.size(); ++i) {
+    EXPECT_EQ(runs[i].stats.candidates, runs[0].stats.candidates) << i;
+    EXPECT_EQ(runs[i].stats.far_steps, runs[0].stats.far_steps) << i;
+    EXPECT_EQ(runs[i].stats.extrema, runs[0].stats.extrema) << i;
+    ASSERT_EQ(runs[i].k.size(), runs[0].k.size()) << i;
+    for (size_t q = 0; q < runs[0].k.size(); ++q) {
+      EXPECT_EQ(runs[i].k[q].pt, runs[0].k[q].pt);
+      EXPECT_EQ(runs[i].k[q].response, runs[0].k[q].response);
+    }
+    EXPECT_EQ(cv::norm(runs[i].d, runs[0].d, cv::NORM_INF), 0.0) << i;
+  }
+  std::printf("%d far interpolation steps, %d extrema, %zu keypoints, whatever ran before\n",
+              runs[0].stats.far_steps, runs[0].stats.extrema, runs[0].k.size());
 }
 
 // A size range prunes octaves before they are computed; what is kept is exactly the unpruned
