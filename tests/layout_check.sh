@@ -30,5 +30,8 @@ grep -HnE '#include [<"]visp3?/|#include "(servo|robot)/' src/detector/* && viol
 grep -HnE '#include "robot/[a-z0-9_]+/' src/servo/* && violation "servo includes a backend header"
 # reference (make_reference) builds on core and the detector only (and ViSP), never robot or servo.
 grep -HnE '#include "(servo|robot)/' src/reference/* && violation "reference includes robot or servo"
+# eval (the evaluation against the classic pipeline) sits on top: no other module includes it.
+grep -HnE '#include "eval/' src/core/* src/detector/* src/servo/* src/reference/* src/robot/*.h src/robot/*.cpp src/robot/*/*.h src/robot/*/*.cpp 2>/dev/null &&
+  violation "a module includes eval"
 [ $fail -eq 0 ] && echo "layout: ok"
 exit $fail

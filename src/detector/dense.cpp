@@ -42,7 +42,8 @@ std::vector<cv::Mat> buildReferencePyramid(const cv::Mat& gray, int min_side_px)
 DenseRefineResult refineHomographyDense(const std::vector<cv::Mat>& ref_pyramid,
                                         const cv::Mat& scene, const Eigen::Matrix3d& H,
                                         const std::array<Eigen::Vector2d, 4>& pattern_rect,
-                                        const DenseRefineOptions& opt) {
+                                        const DenseRefineOptions& opt,
+                                        const std::vector<Eigen::Vector2d>* mask_polygon) {
   DenseRefineResult res;
   res.H = H;
   if (ref_pyramid.empty() || scene.empty() || scene.type() != CV_8UC1 || !H.allFinite()) return res;
@@ -109,12 +110,24 @@ DenseRefineResult refineHomographyDense(const std::vector<cv::Mat>& ref_pyramid,
   cv::Mat warp(3, 3, CV_32F);
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) warp.at<float>(r, c) = static_cast<float>(W(r, c));
+  cv::Mat mask;
+  if (mask_polygon) {
+    // The polygon at level L in template px, shrunk by the inset like the rectangle's edges.
+    mask = cv::Mat::zeros(trect.size(), CV_8UC1);
+    std::vector<cv::Point> poly;
+    for (const auto& p : *mask_polygon)
+      poly.emplace_back(static_cast<int>(std::lround(p.x() / s - trect.x)), static_cast<int>(std::lround(p.y() / s - trect.y)));
+    cv::fillPoly(mask, std::vector<std::vector<cv::Point>>{poly}, cv::Scalar(255));
+    const int inset = 2 + opt.gauss_filter_size / 2;
+    cv::erode(mask, mask, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * inset + 1, 2 * inset + 1)));
+    if (cv::countNonZero(mask) < 64) return res;
+  }
   try {
     res.correlation = cv::findTransformECC(
         ref_pyramid[L](trect), scene(crect), warp, cv::MOTION_HOMOGRAPHY,
         cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, opt.max_iterations,
                          opt.epsilon),
-        cv::noArray(), opt.gauss_filter_size);
+        mask_polygon ? cv::_InputArray(mask) : cv::_InputArray(cv::noArray()), opt.gauss_filter_size);
   } catch (const cv::Exception&) {
     return res;
   }

@@ -44,9 +44,12 @@ struct DenseRefineResult {
 /// (reference px, corners TL, TR, BR, BL; the template is its bounding box). Returns ok = false
 /// (and the input H) when ECC fails, diverges, moves a corner more than max_corner_shift_px or ends
 /// below min_correlation. scene: CV_8UC1.
+/// mask_polygon (reference px, inside pattern_rect): only the template pixels inside it count
+/// (a pattern region that is not a rectangle, e.g. traced on an oblique photo); null: all.
 DenseRefineResult refineHomographyDense(const std::vector<cv::Mat>& ref_pyramid,
                                         const cv::Mat& scene, const Eigen::Matrix3d& H,
                                         const std::array<Eigen::Vector2d, 4>& pattern_rect,
-                                        const DenseRefineOptions& opt);
+                                        const DenseRefineOptions& opt,
+                                        const std::vector<Eigen::Vector2d>* mask_polygon = nullptr);
 
 }  // namespace refgrasp::detector

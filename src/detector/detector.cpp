@@ -17,12 +17,18 @@ struct RegisteredObject {
   ObjectModel model;
   ReferenceIndex index;
   std::array<Eigen::Vector2d, 4> corners_und_px;  ///< pattern corners, undistorted ref px
-  std::vector<cv::Mat> pyramid;  ///< reference pyramid for dense refinement (empty: not usable)
+  std::vector<Eigen::Vector2d> polygon_und_px;    ///< pattern region, undistorted ref px
+  std::vector<cv::Mat> pyramid;  ///< reference pyramid (verification; dense refinement)
+  bool dense_usable = false;     ///< dense refinement possible (3D, undistorted reference)
+  bool region_is_rect = true;    ///< the region is its bounding box (no mask needed)
 };
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
+// A pose whose pattern corners lie farther than this from the matched homography's is refused.
+constexpr double kMaxPoseGapPx = 4.0;
+constexpr double kMaxPoseGapFraction = 0.1;  // of the pattern's diagonal in the image
 double msSince(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
@@ -100,12 +106,24 @@ Features extractFeatures(const cv::Mat& gray, const Intrinsics& camera, const Si
 DenseRefineResult refineDense(const RegisteredObject& e, const Eigen::Matrix3d& H,
                               const cv::Mat& image, const Intrinsics& camera,
                               const DenseRefineOptions& opt) {
+  // The template is the region's bounding box; a polygon region masks it.
+  std::array<Eigen::Vector2d, 4> rect = e.corners_und_px;
+  const std::vector<Eigen::Vector2d>* mask = nullptr;
+  if (!e.region_is_rect) {
+    Eigen::Vector2d lo = e.polygon_und_px[0], hi = lo;
+    for (const auto& p : e.polygon_und_px) {
+      lo = lo.cwiseMin(p);
+      hi = hi.cwiseMax(p);
+    }
+    rect = {lo, Eigen::Vector2d(hi.x(), lo.y()), hi, Eigen::Vector2d(lo.x(), hi.y())};
+    mask = &e.polygon_und_px;
+  }
   if (!camera.hasDistortion())
-    return refineHomographyDense(e.pyramid, image, H, e.corners_und_px, opt);
+    return refineHomographyDense(e.pyramid, image, H, rect, opt, mask);
   // H lives in undistorted pixels: resample only the pattern's neighbourhood of the image onto
   // the ideal pinhole grid (never the whole frame), refine there, and move H back.
   Eigen::Vector2d lo(1e9, 1e9), hi(-1e9, -1e9);
-  for (const auto& c : e.corners_und_px) {
+  for (const auto& c : rect) {
     const Eigen::Vector2d p = applyHomography(H, c);
     if (!p.allFinite()) return {};
     lo = lo.cwiseMin(p);
@@ -130,7 +148,7 @@ DenseRefineResult refineDense(const RegisteredObject& e, const Eigen::Matrix3d& 
   Eigen::Matrix3d T = Eigen::Matrix3d::Identity();  // undistorted px -> crop px
   T(0, 2) = -x0;
   T(1, 2) = -y0;
-  DenseRefineResult r = refineHomographyDense(e.pyramid, crop, T * H, e.corners_und_px, opt);
+  DenseRefineResult r = refineHomographyDense(e.pyramid, crop, T * H, rect, opt, mask);
   r.H = T.inverse() * r.H;
   return r;
 }
@@ -164,7 +182,7 @@ PoseResult estimatePose(const RegisteredObject& e, const DetectorOptions& opt,
   const PlanarTarget& target = *e.model.target;
   if (method == PoseMethod::kPaper)
     return estimatePosePaper(match.H, target, camera.K(), opt.pose_options);
-  if (opt.dense.enabled && !e.pyramid.empty() && !scene.image.empty()) {
+  if (opt.dense.enabled && e.dense_usable && !scene.image.empty()) {
     const DenseRefineResult dr = refineDense(e, match.H, scene.image, camera, opt.dense);
     if (dr.ok) {
       const PoseResult p = poseFromDenseH(e, opt, dr.H, camera);
@@ -273,6 +291,7 @@ MissReason matcherMiss(const MatchResult& m, int scene_features, int reference_f
   if (scene_features < 4 || reference_features < 4) return MissReason::kTooFewFeatures;
   if (m.global_matches == 0) return MissReason::kNoGlobalMatches;
   if (m.rejected.narrow_inlier_spread > 0) return MissReason::kNarrowInlierSpread;
+  if (m.rejected.not_significant > 0) return MissReason::kNotSignificant;
   if (m.rejected.implausible_homography > 0) return MissReason::kImplausibleHomography;
   if (m.rejected.too_few_inliers > 0) return MissReason::kTooFewInliers;
   return MissReason::kTooFewLocalMatches;
@@ -292,6 +311,8 @@ const char* missReasonName(MissReason r) {
     case MissReason::kNarrowInlierSpread: return "narrow inlier spread";
     case MissReason::kPoseFailed: return "pose failed";
     case MissReason::kSanity: return "sanity check";
+    case MissReason::kNotSignificant: return "not significant";
+    case MissReason::kNotVerified: return "not verified";
   }
   return "?";
 }
@@ -302,6 +323,7 @@ void DetectorOptions::check() const {
   pose_options.check();
   dense.check();
   sanity.check();
+  verify.check();
 }
 
 std::optional<Detection> DetectionResult::find(int object, int instance) const {
@@ -336,16 +358,17 @@ int Detector::addObject(const ObjectModel& object) {
     e.corners_und_px[i] =
         object.camera ? object.camera->undistortPixel(object.corners_px[i]) : object.corners_px[i];
   e.index = buildReferenceIndex(std::move(f), polygon, opt_.match);
-  // Dense refinement needs an undistorted reference whose pattern region is its bounding box.
-  if (object.target && (!object.camera || !object.camera->hasDistortion())) {
-    double minx = 1e300, miny = 1e300, maxx = -1e300, maxy = -1e300;
-    for (const Eigen::Vector2d& p : polygon) {
-      minx = std::min(minx, p.x()), maxx = std::max(maxx, p.x());
-      miny = std::min(miny, p.y()), maxy = std::max(maxy, p.y());
-    }
-    if (std::abs(signedArea(polygon)) >= 0.98 * (maxx - minx) * (maxy - miny))
-      e.pyramid = buildReferencePyramid(object.reference);
+  e.polygon_und_px = e.index.polygon_px;
+  e.pyramid = buildReferencePyramid(object.reference);
+  // Dense refinement needs an undistorted reference; a region that is not its bounding box is
+  // a mask on the template.
+  e.dense_usable = object.target && (!object.camera || !object.camera->hasDistortion());
+  double minx = 1e300, miny = 1e300, maxx = -1e300, maxy = -1e300;
+  for (const Eigen::Vector2d& p : e.polygon_und_px) {
+    minx = std::min(minx, p.x()), maxx = std::max(maxx, p.x());
+    miny = std::min(miny, p.y()), maxy = std::max(maxy, p.y());
   }
+  e.region_is_rect = std::abs(signedArea(e.polygon_und_px)) >= 0.98 * (maxx - minx) * (maxy - miny);
   objects_.push_back(std::move(e));
   return static_cast<int>(objects_.size()) - 1;
 }
@@ -443,7 +466,7 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
     st.rejected = m.rejected;
 
     t = Clock::now();
-    int found = 0, pose_failures = 0, sanity_failures = 0;
+    int found = 0, pose_failures = 0, sanity_failures = 0, verify_failures = 0;
     SanityStatus rejected = SanityStatus::kOk;
     for (const MatchCandidate& cand : m.instances) {
       Detection d;
@@ -451,6 +474,7 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
       d.H = cand.H;
       d.inliers = static_cast<int>(cand.inliers.size());
       d.score = cand.score;
+      d.log10_nfa = cand.log10_nfa;
       if (e.model.target) {
         const PoseResult p = estimatePose(e, opt, cand, scene, camera, opt.pose);
         if (!p.ok) {
@@ -461,6 +485,19 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
         d.cMo = p.cMo;
         d.pose_rms_px = p.rms_px;
         for (int i = 0; i < 4; ++i) d.corners[i] = camera.project(p.cMo * e.model.target->corners_o[i]);
+        // Plausibility of the pose: it must put the pattern where the matches put it (a pose
+        // caught in the wrong one of a plane's two solutions, or pulled by a few bad points,
+        // does not).
+        double diag = 0, gap = 0;
+        std::array<Eigen::Vector2d, 4> hc;
+        for (int i = 0; i < 4; ++i) hc[i] = distortPixel(camera, applyHomography(cand.H, e.corners_und_px[i]));
+        diag = 0.5 * ((hc[2] - hc[0]).norm() + (hc[3] - hc[1]).norm());
+        for (int i = 0; i < 4; ++i) gap = std::max(gap, (hc[i] - d.corners[i]).norm());
+        if (!(gap <= std::max(kMaxPoseGapPx, kMaxPoseGapFraction * diag))) {
+          if (found == 0) rejected = SanityStatus::kPoseDisagrees;
+          if (sanity_failures++ == 0) st.sanity = SanityStatus::kPoseDisagrees;
+          continue;
+        }
       } else {
         for (int i = 0; i < 4; ++i)
           d.corners[i] = distortPixel(camera, applyHomography(cand.H, e.corners_und_px[i]));
@@ -471,6 +508,14 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
         if (sanity_failures++ == 0) st.sanity = d.sanity;
         continue;
       }
+      if (opt.verify.enabled) {
+        const VerifyResult v = verifyInstance(e.pyramid, e.polygon_und_px, scene.image, camera, cand.H, opt.verify);
+        d.correlation = v.correlation;
+        if (!v.ok) {
+          ++verify_failures;
+          continue;
+        }
+      }
       d.found = true;
       d.instance = found++;
       res.detections.push_back(d);
@@ -480,6 +525,7 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
       res.detections.back().object = id;
       res.detections.back().sanity = rejected;
       if (!s.searched) st.miss = MissReason::kNotSearched;
+      else if (verify_failures > 0) st.miss = MissReason::kNotVerified;
       else if (sanity_failures > 0) st.miss = MissReason::kSanity;
       else if (pose_failures > 0) st.miss = MissReason::kPoseFailed;
       else st.miss = matcherMiss(m, scene.size(), e.index.features.size());

@@ -35,6 +35,7 @@
 #include "detector/pose.h"      // PoseMethod, PoseOptions
 #include "detector/sanity.h"    // SanityOptions, SanityStatus
 #include "detector/stereo.h"    // FusedPose
+#include "detector/verify.h"    // VerifyOptions
 
 namespace refgrasp::detector {
 
@@ -53,6 +54,8 @@ struct DetectorOptions {
   /// feature correspondences when ECC fails or moves a corner too far.
   DenseRefineOptions dense;
   SanityOptions sanity;
+  /// Last check of an instance: the reference warped by its H must correlate with the scene.
+  VerifyOptions verify;
   /// Throws std::invalid_argument "<Options.field>: <problem>".
   void check() const;
 };
@@ -90,6 +93,8 @@ struct Detection {
   int inliers = 0;
   double score = 0;         ///< matcher score (eq. 3), lower is better
   double pose_rms_px = 0;   ///< reprojection RMS of the pose method's own points
+  double log10_nfa = 0;     ///< a-contrario significance of the matches (MatchOptions::max_log10_nfa)
+  double correlation = 0;   ///< photometric agreement of the warped reference (VerifyOptions)
   SanityStatus sanity = SanityStatus::kOk;  ///< why the best candidate was rejected, if it was
 };
 
@@ -105,6 +110,8 @@ enum class MissReason {
   kNarrowInlierSpread,     ///< inliers covered too little of the reference (a shared logo)
   kPoseFailed,             ///< no candidate's pose could be estimated
   kSanity,                 ///< every candidate failed the sanity check (ObjectStats::sanity)
+  kNotSignificant,         ///< the best consensus was not significant (log10 NFA too high)
+  kNotVerified,            ///< every candidate's warped reference disagreed with the scene
 };
 const char* missReasonName(MissReason r);
 

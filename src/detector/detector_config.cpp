@@ -36,6 +36,7 @@ void visitFields(O& o, Visit&& v) {
   v("match.max_instances", o.match.max_instances);
   v("match.max_descriptor_distance", o.match.max_descriptor_distance);
   v("match.min_inlier_spread", o.match.min_inlier_spread);
+  v("match.max_log10_nfa", o.match.max_log10_nfa);
   v("match.seed", o.match.seed);
   v("pose", o.pose);
   v("pose_options.paper_lm_iterations", o.pose_options.paper_lm_iterations);
@@ -55,13 +56,16 @@ void visitFields(O& o, Visit&& v) {
   v("sanity.max_distance_m", o.sanity.max_distance_m);
   v("sanity.min_area_px2", o.sanity.min_area_px2);
   v("sanity.max_area_fraction", o.sanity.max_area_fraction);
+  v("verify.enabled", o.verify.enabled);
+  v("verify.min_correlation", o.verify.min_correlation);
+  v("verify.compare_px", o.verify.compare_px);
 }
 
 // check() names fields "<Options>.<field>"; the file names them "<section>.<field>".
 const std::map<std::string, std::string> kSectionOf = {
     {"SiftOptions", "sift"},          {"MatchOptions", "match"},
     {"PoseOptions", "pose_options"},  {"DenseRefineOptions", "dense"},
-    {"SanityOptions", "sanity"}};
+    {"SanityOptions", "sanity"},      {"VerifyOptions", "verify"}};
 
 const char* name(MatcherType m) { return m == MatcherType::kRatio ? "ratio" : "paper"; }
 const char* name(SiftImplementation i) { return i == SiftImplementation::kOpenCV ? "opencv" : "fast"; }

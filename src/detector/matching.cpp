@@ -3,6 +3,7 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <climits>
+#include <limits>
 #include <cmath>
 #include <cstdint>
 #include <opencv2/imgproc.hpp>
@@ -28,6 +29,8 @@ constexpr int kPass1MinMatches = 6;            // pass-1 matches needed to fit a
 constexpr double kOverlapFraction = 0.25;      // instances overlapping more than this conflict
 constexpr double kMinAreaPx2 = 64.0;           // smallest projected pattern accepted
 constexpr double kAmbiguousSeedFraction = 0.7; // twin seeds need d1, d2 < this x max_descriptor_distance
+constexpr double kNfaMinEpsPx = 0.5;           // a-contrario: no consensus is tighter than SIFT's localisation
+constexpr int kNfaSample = 4;                  // a-contrario: the homography's minimal sample
 
 Vec2 pt(const cv::KeyPoint& k) { return Vec2(k.pt.x, k.pt.y); }
 double deg2rad(double d) { return d * kPi / 180.0; }
@@ -101,7 +104,34 @@ struct Context {
   double min_scene_size = 0;
   double max_dd2 = 0;
   cv::Rect2d bounds;
+  /// A-contrario background model: log10 of the number of tests (hypotheses), and the density
+  /// (per px^2) of scene features that would pass a local match's orientation, scale and
+  /// descriptor tests by chance for one reference feature.
+  double log10_tests = 0;
+  double chance_per_px2 = 0;
 };
+
+double log10Binomial(int n, int k) {
+  return (std::lgamma(n + 1.0) - std::lgamma(k + 1.0) - std::lgamma(n - k + 1.0)) / std::log(10.0);
+}
+
+/// log10 NFA of the best consensus among the residuals (px) of matches under a homography, n
+/// reference features tested (AC-RANSAC: each k with eps = the k-th smallest residual).
+double log10Nfa(const Context& cx, std::vector<double> residuals, int n) {
+  std::sort(residuals.begin(), residuals.end());
+  const int m = static_cast<int>(residuals.size());
+  n = std::max(n, m);
+  double best = std::numeric_limits<double>::infinity();
+  const double base = cx.log10_tests + std::log10(std::max(1, n - kNfaSample));
+  for (int k = kNfaSample + 1; k <= m; ++k) {
+    const double eps = std::max(kNfaMinEpsPx, residuals[k - 1]);
+    const double p = -std::expm1(-cx.chance_per_px2 * kPi * eps * eps);
+    if (!(p > 0)) continue;
+    const double v = base + log10Binomial(n, k) + log10Binomial(k, kNfaSample) + (k - kNfaSample) * std::log10(std::min(1.0, p));
+    best = std::min(best, v);
+  }
+  return best;
+}
 
 /// The paper's local search: for each listed reference feature, among scene features within the
 /// radius of its predicted position, with orientation within +-tol and size within +-tol*s of the
@@ -110,8 +140,10 @@ struct Context {
 /// With a list, at most max_tried of its features predicted to be detectable are tried.
 template <class Radius>
 void localSearch(const Context& cx, const Predictor& pred, const std::vector<int>* list,
-                 const Radius& radius_px, std::vector<LocalMatch>* out, int max_tried = INT_MAX) {
+                 const Radius& radius_px, std::vector<LocalMatch>* out, int max_tried = INT_MAX,
+                 int* tested = nullptr) {
   out->clear();
+  if (tested) *tested = 0;
   const auto& rk = cx.ref.features.keypoints;
   const auto& sk = cx.scene.keypoints;
   const double lr2 = cx.opt.local_ratio * cx.opt.local_ratio;
@@ -129,6 +161,7 @@ void localSearch(const Context& cx, const Predictor& pred, const std::vector<int
     if (xs.x() < cx.bounds.x - r || xs.y() < cx.bounds.y - r ||
         xs.x() > cx.bounds.x + cx.bounds.width + r || xs.y() > cx.bounds.y + cx.bounds.height + r)
       continue;
+    if (tested) ++*tested;
     cx.grid.radiusSearch(xs, r, &cand);
     int best = -1, d1 = INT_MAX, d2 = INT_MAX;
     const int16_t* rd = cx.ref.descriptors.s16.ptr<int16_t>(i);
@@ -167,6 +200,8 @@ struct Candidate {
   double score = 0;
   std::vector<cv::Point2f> quad;  // projected convex hull of the pattern, scene px
   double area = 0;
+  int tested = 0;                 // reference features the last local search tested
+  double log10_nfa = 0;
 };
 
 HomographyOptions homographyOptions(const MatchOptions& opt) {
@@ -176,8 +211,9 @@ HomographyOptions homographyOptions(const MatchOptions& opt) {
   return h;
 }
 
-/// Robust homography from matches; fills a candidate when it passes min_inliers and plausibility.
-bool makeCandidate(const Context& cx, const std::vector<Correspondence>& matches, Candidate* c) {
+/// Robust homography from matches; fills a candidate when it passes min_inliers, the a-contrario
+/// test (n_tested reference features were tested) and plausibility.
+bool makeCandidate(const Context& cx, const std::vector<Correspondence>& matches, Candidate* c, int n_tested) {
   auto reject = [](int* counter) {
     ++*counter;
     return false;
@@ -210,6 +246,14 @@ bool makeCandidate(const Context& cx, const std::vector<Correspondence>& matches
     hr.H = Ht;
     hr.inliers = keep;
   }
+  double log10_nfa = -std::numeric_limits<double>::infinity();
+  if (std::isfinite(cx.opt.max_log10_nfa)) {
+    std::vector<double> res;
+    res.reserve(a.size());
+    for (size_t k = 0; k < a.size(); ++k) res.push_back((applyHomography(hr.H, a[k]) - b[k]).norm());
+    log10_nfa = log10Nfa(cx, std::move(res), n_tested);
+    if (!(log10_nfa <= cx.opt.max_log10_nfa)) return reject(&cx.rejects->not_significant);
+  }
   if (!homographyPlausible(hr.H, cx.ref.hull_px, kMinAreaPx2))
     return reject(&cx.rejects->implausible_homography);
   std::vector<cv::Point2f> in, hull;
@@ -218,6 +262,8 @@ bool makeCandidate(const Context& cx, const std::vector<Correspondence>& matches
   if (cv::contourArea(hull) < cx.opt.min_inlier_spread * cx.ref.feature_hull_area_px2)
     return reject(&cx.rejects->narrow_inlier_spread);
   c->H = hr.H;
+  c->tested = n_tested;
+  c->log10_nfa = log10_nfa;
   c->inliers.clear();
   double sum = 0;
   for (int k : hr.inliers) {
@@ -267,10 +313,10 @@ std::vector<MatchCandidate> selectInstances(const Context& cx, std::vector<Candi
     std::vector<Correspondence> free;
     for (const auto& m : c.inliers)
       if (!used[m.scene]) free.push_back(m);
-    if (free.size() != c.inliers.size() && !makeCandidate(cx, free, &c)) continue;
+    if (free.size() != c.inliers.size() && !makeCandidate(cx, free, &c, c.tested)) continue;
     for (const auto& m : c.inliers) used[m.scene] = 1;
     accepted.push_back(c);
-    out.push_back({c.inliers, c.H, c.score});
+    out.push_back({c.inliers, c.H, c.score, c.log10_nfa});
   }
   return out;
 }
@@ -309,6 +355,7 @@ bool evaluateHypothesis(const Context& cx, int r, int s, Candidate* out) {
 
   // A homography fitted to a neighbourhood extrapolates with an error that grows with the
   // distance from it; the second fit covers the whole pattern and is trusted uniformly.
+  int tested = 0;
   for (int pass = 0; pass < 2; ++pass) {
     std::vector<Vec2> a, b;
     for (const auto& x : m) {
@@ -324,10 +371,10 @@ bool evaluateHypothesis(const Context& cx, int r, int s, Candidate* out) {
         return factor * (e0 + kHomographyErrorPerPx * (xs - seed).norm());
       }, &m);
     } else {
-      localSearch(cx, hom, nullptr, [&](const Vec2&) { return factor * e0; }, &m);
+      localSearch(cx, hom, nullptr, [&](const Vec2&) { return factor * e0; }, &m, INT_MAX, &tested);
     }
   }
-  return makeCandidate(cx, toCorrespondences(m), out);
+  return makeCandidate(cx, toCorrespondences(m), out, tested);
 }
 
 MatchResult matchPaper(const Context& cx, const std::vector<NearestTwo>& nn) {
@@ -424,7 +471,7 @@ MatchResult matchRatio(const Context& cx, const std::vector<NearestTwo>& nn) {
   std::vector<Candidate> accepted;
   while (static_cast<int>(res.instances.size()) < cx.opt.max_instances) {
     Candidate c;
-    if (!makeCandidate(cx, matches, &c)) break;
+    if (!makeCandidate(cx, matches, &c, cx.ref.features.size())) break;
     bool clash = false;
     for (const auto& a : accepted) clash |= overlaps(c, a);
     std::vector<char> used(cx.scene.keypoints.size(), 0);
@@ -435,7 +482,7 @@ MatchResult matchRatio(const Context& cx, const std::vector<NearestTwo>& nn) {
     matches.swap(rest);
     if (clash) continue;
     accepted.push_back(c);
-    res.instances.push_back({c.inliers, c.H, c.score});
+    res.instances.push_back({c.inliers, c.H, c.score, c.log10_nfa});
   }
   return res;
 }
@@ -461,6 +508,8 @@ void MatchOptions::check() const {
                   "MatchOptions.max_descriptor_distance", "must be > 0");
   refgrasp::check(min_inlier_spread >= 0 && min_inlier_spread < 1, "MatchOptions.min_inlier_spread",
                   "must be in [0, 1)");
+  refgrasp::check(!std::isnan(max_log10_nfa) && max_log10_nfa > -std::numeric_limits<double>::infinity(),
+                  "MatchOptions.max_log10_nfa", "must be a number or +inf");
 }
 
 MatchResult matchObject(const ReferenceIndex& ref, const Features& scene, const GridIndex& grid,
@@ -480,6 +529,25 @@ MatchResult matchObjectUnchecked(const ReferenceIndex& ref, const Features& scen
   cx.max_dd2 = opt.max_descriptor_distance * opt.max_descriptor_distance;
   cx.bounds = cv::Rect2d(-0.5, -0.5, scene.image_size.width, scene.image_size.height);
   const std::vector<NearestTwo> nn = nearestTwo(ref.descriptors, cx.scene_desc);
+  if (std::isfinite(opt.max_log10_nfa)) {
+    // Background model of the a-contrario test, measured on this frame: scene features per px^2
+    // over the area they fall in, times the chance that one passes a local match's orientation
+    // window, scale window (of ~5 octaves of sizes) and descriptor bound for a given reference
+    // feature (scene features within the bound of some reference feature, per reference feature).
+    float x0 = 1e9f, y0 = 1e9f, x1 = -1e9f, y1 = -1e9f;
+    for (const auto& k : scene.keypoints) {
+      x0 = std::min(x0, k.pt.x), x1 = std::max(x1, k.pt.x);
+      y0 = std::min(y0, k.pt.y), y1 = std::max(y1, k.pt.y);
+    }
+    const double area = std::max(1.0, static_cast<double>(x1 - x0) * (y1 - y0));
+    int close = 0;
+    for (const auto& x : nn) close += x.best >= 0 && x.d1 <= cx.max_dd2;
+    const double q_desc = std::clamp(static_cast<double>(close) / (static_cast<double>(scene.size()) * ref.features.size()), 1e-6, 1.0);
+    const double q_orient = opt.orientation_tolerance_rad / kPi;
+    const double q_scale = std::min(1.0, std::log2((1 + opt.scale_tolerance) / (1 - opt.scale_tolerance)) / 5);
+    cx.chance_per_px2 = scene.size() / area * q_orient * q_scale * q_desc;
+    cx.log10_tests = std::log10(static_cast<double>(opt.matcher == MatcherType::kPaper ? opt.max_hypotheses : 1));
+  }
   MatchResult res = opt.matcher == MatcherType::kPaper ? matchPaper(cx, nn) : matchRatio(cx, nn);
   res.rejected = rejects;
   return res;

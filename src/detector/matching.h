@@ -22,7 +22,7 @@ enum class MatcherType { kPaper, kRatio };
 struct MatchOptions {
   MatcherType matcher = MatcherType::kPaper;
   double global_ratio = 0.8;           ///< Lowe ratio for global matches (seeds / baseline)
-  double local_ratio = 0.5;            ///< ratio between best and second-best local candidate
+  double local_ratio = 0.7;            ///< ratio between best and second-best local candidate
   /// Local search radius = factor x expected localisation error of the hypothesis (see
   /// matchObject: 2 px + 0.1 x scene distance from the seed under T^k).
   double search_radius_factor = 2.0;
@@ -30,12 +30,21 @@ struct MatchOptions {
   double scale_tolerance = 0.5;        ///< |s_s - predicted s| <= scale_tolerance * predicted s
   int max_hypotheses = 200;            ///< cap on hypotheses given a local search
   int max_reference_features = 1000;   ///< cap: strongest by response, round robin over octaves
-  int min_inliers = 12;                ///< homography inliers needed to accept an instance
+  /// Floor on the homography inliers of an instance; above it the a-contrario test decides.
+  int min_inliers = 8;
+  /// A-contrario acceptance (AC-RANSAC / ORSA, Moisan and Stival): an instance is accepted when
+  /// its consensus has log10 NFA <= max_log10_nfa, the number of false alarms of k matches within
+  /// eps px of their prediction among the n reference features tested, when scene features fall
+  /// at random (their number and the area they fall in give the density) and pass the local
+  /// match's orientation, scale and descriptor tests by chance (frequencies measured per frame).
+  /// +inf: min_inliers alone decides (the count rule).
+  double max_log10_nfa = 0.0;
   double ransac_reproj_px = 3.0;
   int max_instances = 1;               ///< disjoint instances reported per object
   /// Local matches farther than this in descriptor space are never accepted (OpenCV SIFT
-  /// descriptors have L2 norm ~512; unrelated features are typically 350-450 apart).
-  double max_descriptor_distance = 300;
+  /// descriptors have L2 norm ~512; unrelated features are typically 350-450 apart, true matches
+  /// of small blurred targets up to ~350).
+  double max_descriptor_distance = 350;
   /// An instance's inliers must spread over at least this fraction of the area spanned by all
   /// reference features (convex hulls, reference px): a shared word or logo is not the object.
   double min_inlier_spread = 0.05;
@@ -55,6 +64,7 @@ struct MatchCandidate {
   Eigen::Matrix3d H = Eigen::Matrix3d::Identity();  ///< reference px -> scene px: x_s ~ H x_r
   /// eq. 3 over the inliers: mean of |x_s - H x_r| (px) x descriptor distance; lower is better.
   double score = 0;
+  double log10_nfa = 0;  ///< a-contrario significance of the consensus (lower is stronger)
 };
 
 /// How many hypotheses (paper) or robust fits (ratio; re-fits in the selection) ended at each
@@ -62,6 +72,7 @@ struct MatchCandidate {
 struct MatchRejects {
   int too_few_local_matches = 0;   ///< paper: the local search found too few consistent matches
   int too_few_inliers = 0;         ///< robust homography with < min_inliers inliers, or none
+  int not_significant = 0;         ///< consensus with log10 NFA > max_log10_nfa
   int implausible_homography = 0;  ///< flipped, non-convex, near-singular or tiny pattern
   int narrow_inlier_spread = 0;    ///< inliers span < min_inlier_spread of the reference
 };
@@ -100,7 +111,8 @@ struct MatchResult {
 ///     error max(2 px, rms) + 0.03 x distance from the seed, then max(2 px, rms)).
 ///  3. The last pass's matches give a robust homography (inliers then tightened to 3 sigma of
 ///     the fit, min 1 px, and re-fitted); it is a candidate when it has
-///     >= min_inliers inliers, a plausible H (homographyPlausible on the pattern hull) and
+///     >= min_inliers inliers, a significant consensus (log10 NFA <= max_log10_nfa, see
+///     MatchOptions), a plausible H (homographyPlausible on the pattern hull) and
 ///     inliers spanning >= min_inlier_spread of the reference. Its score is eq. 3.
 ///  4. Collapse: seeds whose scene feature is an inlier of a candidate, or that a candidate's H
 ///     already explains (within 2 x ransac_reproj_px), are not tried again. At most

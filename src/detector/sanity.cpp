@@ -28,6 +28,7 @@ const char* sanityStatusName(SanityStatus s) {
     case SanityStatus::kAreaTooSmall: return "area too small";
     case SanityStatus::kAreaTooLarge: return "area too large";
     case SanityStatus::kNotFinite: return "not finite";
+    case SanityStatus::kPoseDisagrees: return "pose disagrees with the homography";
   }
   return "?";
 }

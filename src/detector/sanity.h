@@ -17,7 +17,9 @@ struct SanityOptions {
 };
 
 enum class SanityStatus { kOk, kBehindCamera, kTooClose, kTooFar, kNotConvex, kAreaTooSmall,
-                          kAreaTooLarge, kNotFinite };
+                          kAreaTooLarge, kNotFinite,
+                          kPoseDisagrees  ///< the pose's pattern corners far from the homography's
+};
 const char* sanityStatusName(SanityStatus s);
 
 /// corners: TL, TR, BR, BL in image px. cMo: empty for 2D-only objects (corner checks only).

@@ -114,6 +114,11 @@ cv::Mat clutterBackground(uint64_t seed, int width, int height) {
 
 Pose randomVisiblePose(std::mt19937_64& rng, const Intrinsics& cam, double width_m, double height_m,
                        double min_dist_m, double max_dist_m, double max_tilt_rad) {
+  return randomVisiblePoseIn(rng, cam, width_m, height_m, min_dist_m, max_dist_m, 0, max_tilt_rad);
+}
+
+Pose randomVisiblePoseIn(std::mt19937_64& rng, const Intrinsics& cam, double width_m, double height_m,
+                         double min_dist_m, double max_dist_m, double min_tilt_rad, double max_tilt_rad) {
   constexpr double kMargin = 10;
   constexpr int kTries = 20000;
   const Eigen::Matrix3d Kinv = cam.K().inverse();
@@ -121,7 +126,7 @@ Pose randomVisiblePose(std::mt19937_64& rng, const Intrinsics& cam, double width
     const Eigen::Vector3d ray =
         (Kinv * Eigen::Vector3d(uni(rng, 0, cam.width - 1), uni(rng, 0, cam.height - 1), 1)).normalized();
     const double dist = uni(rng, min_dist_m, max_dist_m);
-    const double tilt = uni(rng, 0, max_tilt_rad), tilt_dir = uni(rng, 0, 2 * M_PI);
+    const double tilt = uni(rng, min_tilt_rad, max_tilt_rad), tilt_dir = uni(rng, 0, 2 * M_PI);
     const double spin = uni(rng, 0, 2 * M_PI);
     // Basis perpendicular to the ray; the tilt axis lies in it.
     const Eigen::Vector3d e1 = ray.cross(Eigen::Vector3d::UnitY()).normalized();

@@ -40,6 +40,9 @@ cv::Mat clutterBackground(uint64_t seed, int width = 640, int height = 480);
 /// no such pose is found (e.g. the plane cannot fit in the image at that distance).
 Pose randomVisiblePose(std::mt19937_64& rng, const Intrinsics& cam, double width_m, double height_m,
                        double min_dist_m, double max_dist_m, double max_tilt_rad);
+/// randomVisiblePose with the tilt drawn in [min_tilt_rad, max_tilt_rad] (the same draws).
+Pose randomVisiblePoseIn(std::mt19937_64& rng, const Intrinsics& cam, double width_m, double height_m,
+                         double min_dist_m, double max_dist_m, double min_tilt_rad, double max_tilt_rad);
 
 struct SceneSpec {
   Pose cMo;

@@ -1,0 +1,122 @@
+#include "detector/verify.h"
+
+#include <algorithm>
+#include <cmath>
+#include <opencv2/imgproc.hpp>
+
+#include "core/error.h"
+#include "core/geometry.h"
+
+namespace refgrasp::detector {
+
+void VerifyOptions::check() const {
+  refgrasp::check(std::isfinite(min_correlation) && min_correlation >= -1 && min_correlation < 1,
+                  "VerifyOptions.min_correlation", "must be in [-1, 1)");
+  refgrasp::check(compare_px >= 8 && compare_px <= 1024, "VerifyOptions.compare_px", "must be in [8, 1024]");
+}
+
+VerifyResult verifyInstance(const std::vector<cv::Mat>& pyr, const std::vector<Eigen::Vector2d>& polygon,
+                            const cv::Mat& scene, const Intrinsics& cam, const Eigen::Matrix3d& H,
+                            const VerifyOptions& opt) {
+  VerifyResult res;
+  if (pyr.empty() || scene.empty() || scene.type() != CV_8UC1 || polygon.size() < 3 || !H.allFinite()) return res;
+  // Pattern in the scene (undistorted px): in front of the vanishing line, its area.
+  std::vector<Eigen::Vector2d> proj;
+  double w0 = 0;
+  for (const auto& p : polygon) {
+    const Eigen::Vector3d q = H * p.homogeneous();
+    if (proj.empty()) w0 = q.z();
+    if (!(q.z() * w0 > 0)) return res;
+    proj.push_back(q.hnormalized());
+  }
+  const double a_ref = std::abs(signedArea(polygon)), a_scene = std::abs(signedArea(proj));
+  if (!(a_ref > 0) || !(a_scene > 4) || !std::isfinite(a_scene)) return res;
+  Eigen::Vector2d lo = polygon[0], hi = polygon[0];
+  for (const auto& p : polygon) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  // Comparison grid: no finer than the scene's pixels, at most compare_px on the longer side.
+  const double side = std::max(hi.x() - lo.x(), hi.y() - lo.y());
+  const double s = std::min(opt.compare_px / side, std::sqrt(a_scene / a_ref));  // grid px per ref px
+  const int tw = std::max(4, static_cast<int>(std::ceil((hi.x() - lo.x()) * s)));
+  const int th = std::max(4, static_cast<int>(std::ceil((hi.y() - lo.y()) * s)));
+  // Reference side: the pyramid level just finer than the grid, area-resampled onto it.
+  int L = std::clamp(static_cast<int>(std::floor(std::log2(1 / s))), 0, static_cast<int>(pyr.size()) - 1);
+  const double ls = std::ldexp(1.0, L);
+  cv::Mat mapx(th, tw, CV_32F), mapy(th, tw, CV_32F), smx(th, tw, CV_32F), smy(th, tw, CV_32F);
+  for (int v = 0; v < th; ++v)
+    for (int u = 0; u < tw; ++u) {
+      const Eigen::Vector2d r(lo.x() + (u + 0.5) / s - 0.5, lo.y() + (v + 0.5) / s - 0.5);  // ref px
+      mapx.at<float>(v, u) = static_cast<float>((r.x() + 0.5) / ls - 0.5);
+      mapy.at<float>(v, u) = static_cast<float>((r.y() + 0.5) / ls - 0.5);
+      Eigen::Vector2d q = (H * r.homogeneous()).hnormalized();
+      if (cam.hasDistortion()) q = cam.distortNormalized(Eigen::Vector2d((q.x() - cam.cx) / cam.fx, (q.y() - cam.cy) / cam.fy));
+      smx.at<float>(v, u) = static_cast<float>(q.x());
+      smy.at<float>(v, u) = static_cast<float>(q.y());
+    }
+  // Low-pass both sides to the grid's resolution before sampling (no aliasing), then a little
+  // more on the grid so that a pixel of misalignment does not decorrelate fine texture.
+  const double ref_step = 1 / (s * ls), scene_step = std::sqrt(a_scene / a_ref) / s;
+  cv::Mat ref, sc;
+  const cv::Mat& R = pyr[L];
+  auto lowpass = [](const cv::Mat& img, double step, cv::Mat* out) {
+    if (step > 1.2) cv::GaussianBlur(img, *out, cv::Size(0, 0), 0.45 * step);
+    else *out = img;
+  };
+  // Only the scene's neighbourhood of the pattern is filtered.
+  Eigen::Vector2d slo(1e30, 1e30), shi(-1e30, -1e30);
+  for (int v = 0; v < th; ++v)
+    for (int u = 0; u < tw; ++u) {
+      const Eigen::Vector2d q(smx.at<float>(v, u), smy.at<float>(v, u));
+      slo = slo.cwiseMin(q);
+      shi = shi.cwiseMax(q);
+    }
+  const int pad = static_cast<int>(std::ceil(2 * scene_step)) + 3;
+  const cv::Rect crop = cv::Rect(cv::Point(static_cast<int>(std::floor(slo.x())) - pad, static_cast<int>(std::floor(slo.y())) - pad),
+                                 cv::Point(static_cast<int>(std::ceil(shi.x())) + pad + 1, static_cast<int>(std::ceil(shi.y())) + pad + 1)) &
+                        cv::Rect(0, 0, scene.cols, scene.rows);
+  if (crop.area() <= 0) return res;
+  lowpass(scene(crop), scene_step, &sc);
+  smx -= static_cast<float>(crop.x);
+  smy -= static_cast<float>(crop.y);
+  lowpass(R, ref_step, &ref);
+  cv::Mat a, b, inside;
+  cv::remap(ref, a, mapx, mapy, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  cv::remap(sc, b, smx, smy, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0));
+  cv::remap(cv::Mat(sc.size(), CV_8UC1, cv::Scalar(255)), inside, smx, smy, cv::INTER_NEAREST, cv::BORDER_CONSTANT,
+            cv::Scalar(0));
+  // The polygon on the grid, one grid pixel inside its outline.
+  cv::Mat mask = cv::Mat::zeros(th, tw, CV_8UC1);
+  std::vector<cv::Point> poly;
+  for (const auto& p : polygon)
+    poly.emplace_back(cv::Point(static_cast<int>(std::lround((p.x() - lo.x()) * s)), static_cast<int>(std::lround((p.y() - lo.y()) * s))));
+  cv::fillPoly(mask, std::vector<std::vector<cv::Point>>{poly}, cv::Scalar(255));
+  const int in_polygon = cv::countNonZero(mask);
+  cv::erode(mask, mask, cv::Mat());
+  mask &= inside;
+  const int n = cv::countNonZero(mask);
+  res.visible_fraction = in_polygon > 0 ? static_cast<double>(n) / in_polygon : 0;
+  if (n < 12 || res.visible_fraction < 0.25) return res;
+  cv::Mat fa, fb;
+  a.convertTo(fa, CV_32F);
+  b.convertTo(fb, CV_32F);
+  cv::GaussianBlur(fa, fa, cv::Size(3, 3), 0.7);
+  cv::GaussianBlur(fb, fb, cv::Size(3, 3), 0.7);
+  const double ma = cv::mean(fa, mask)[0], mb = cv::mean(fb, mask)[0];
+  double sab = 0, saa = 0, sbb = 0;
+  for (int v = 0; v < th; ++v)
+    for (int u = 0; u < tw; ++u) {
+      if (!mask.at<uchar>(v, u)) continue;
+      const double x = fa.at<float>(v, u) - ma, y = fb.at<float>(v, u) - mb;
+      sab += x * y;
+      saa += x * x;
+      sbb += y * y;
+    }
+  if (!(saa > 1.0 * n) || !(sbb > 1.0 * n)) return res;  // flat: std below 1 gray level
+  res.correlation = sab / std::sqrt(saa * sbb);
+  res.ok = res.correlation >= opt.min_correlation;
+  return res;
+}
+
+}  // namespace refgrasp::detector

@@ -1,0 +1,43 @@
+#pragma once
+// Verification of an accepted instance (issue 7): a wrong geometry that found enough consistent
+// matches (a shared logo, a repeated motif, clutter) must still be refused. The reference,
+// warped into the scene by the instance's homography, must look like the scene there:
+// zero-mean normalised cross-correlation over the pattern polygon, both sides smoothed and
+// compared at a coarse common resolution (so blur, noise, JPEG and a residual misalignment of a
+// pixel or two barely matter; gain and offset do not matter at all).
+//
+// Pixels: H maps reference px -> scene px (x_s ~ H x_r), both ideal pinhole pixels.
+#include <Eigen/Core>
+#include <opencv2/core.hpp>
+#include <vector>
+
+#include "core/camera.h"
+
+namespace refgrasp::detector {
+
+struct VerifyOptions {
+  bool enabled = true;
+  /// Refuse an instance whose warped reference correlates less than this with the scene.
+  double min_correlation = 0.25;
+  /// Comparison resolution: the pattern is compared on at most this many pixels on its longer side.
+  int compare_px = 48;
+  /// Throws std::invalid_argument "VerifyOptions.<field>: <problem>".
+  void check() const;
+};
+
+struct VerifyResult {
+  bool ok = false;           ///< correlation >= min_correlation (false also when not computable)
+  double correlation = 0;    ///< zero-mean NCC over the pattern pixels that land in the scene
+  double visible_fraction = 0;  ///< of the pattern's compared pixels, those inside the scene image
+};
+
+/// Compares the reference (pyramid: level 0 = the reference image, each next one pyrDown) inside
+/// `polygon` (reference px) with the scene (CV_8UC1) under H. With a distorting scene camera H
+/// ends in undistorted scene px and the scene is sampled through the distortion. Not computable (ok = false,
+/// correlation 0): an empty pyramid or scene, a non-finite H, the pattern crossing the vanishing
+/// line, less than a quarter of it inside the scene, or a flat (textureless) comparison.
+VerifyResult verifyInstance(const std::vector<cv::Mat>& ref_pyramid, const std::vector<Eigen::Vector2d>& polygon,
+                            const cv::Mat& scene, const Intrinsics& scene_camera, const Eigen::Matrix3d& H,
+                            const VerifyOptions& opt);
+
+}  // namespace refgrasp::detector
