@@ -35,7 +35,8 @@ void usage() {
       "       [--min-distance-bin N (only frames of distance bins >= N)]\n"
       "       [--dump DIR (write the references and 12 frames per set, no evaluation)]\n"
       "       [--classic-fast (the classic pipeline reuses the fast SIFT\n"
-      "       features: same results, no classic timing)] [--wall] [--csv FILE] [--help]\n");
+      "       features: same results, no classic timing, no classic on the clutter)] [--wall]\n"
+      "       [--csv FILE] [--help]\n");
 }
 
 }  // namespace
@@ -185,7 +186,7 @@ int main(int argc, char** argv) {
               losses.empty() ? "none" : "");
   for (const auto& l : losses) std::printf("  %s\n", l.c_str());
   if (clutter > 0 && !all_objects.empty()) {
-    const eval::ClutterReport c = eval::evaluateClutter(all_objects, opt.detector, clutter, seed, true);
+    const eval::ClutterReport c = eval::evaluateClutter(all_objects, opt.detector, clutter, seed, opt.classic_own_sift);
     std::printf("Photo clutter (%d frames, %zu objects registered, siblings sharing a logo or word): "
                 "refgrasp %d false detections, classic %d\n",
                 c.frames, all_objects.size(), c.detections, c.classic_detections);

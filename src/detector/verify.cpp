@@ -103,19 +103,41 @@ VerifyResult verifyInstance(const std::vector<cv::Mat>& pyr, const std::vector<E
   b.convertTo(fb, CV_32F);
   cv::GaussianBlur(fa, fa, cv::Size(3, 3), 0.7);
   cv::GaussianBlur(fb, fb, cv::Size(3, 3), 0.7);
-  const double ma = cv::mean(fa, mask)[0], mb = cv::mean(fb, mask)[0];
-  double sab = 0, saa = 0, sbb = 0;
-  for (int v = 0; v < th; ++v)
-    for (int u = 0; u < tw; ++u) {
-      if (!mask.at<uchar>(v, u)) continue;
-      const double x = fa.at<float>(v, u) - ma, y = fb.at<float>(v, u) - mb;
-      sab += x * y;
-      saa += x * x;
-      sbb += y * y;
+  // Zero-mean NCC over a box of the grid; NaN when it is flat (std below 1 gray level) or small.
+  auto ncc = [&](const cv::Rect& box) {
+    const double ma = cv::mean(fa(box), mask(box))[0], mb = cv::mean(fb(box), mask(box))[0];
+    double sab = 0, saa = 0, sbb = 0;
+    int k = 0;
+    for (int v = box.y; v < box.y + box.height; ++v)
+      for (int u = box.x; u < box.x + box.width; ++u) {
+        if (!mask.at<uchar>(v, u)) continue;
+        const double x = fa.at<float>(v, u) - ma, y = fb.at<float>(v, u) - mb;
+        sab += x * y;
+        saa += x * x;
+        sbb += y * y;
+        ++k;
+      }
+    if (k < 12 || !(saa > 1.0 * k) || !(sbb > 1.0 * k)) return std::nan("");
+    return sab / std::sqrt(saa * sbb);
+  };
+  res.correlation = ncc(cv::Rect(0, 0, tw, th));
+  if (std::isnan(res.correlation)) {
+    res.correlation = 0;
+    return res;
+  }
+  // The pattern's box cut into 3 x 3 cells: of the cells with texture on both sides, at least
+  // half must agree on their own. A shared logo or word (a sibling product), or a repeated
+  // pattern aligned one period off, agrees in part of the pattern, not over most of it.
+  int cells = 0, agreeing = 0;
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) {
+      const cv::Rect cell(j * tw / 3, i * th / 3, (j + 1) * tw / 3 - j * tw / 3, (i + 1) * th / 3 - i * th / 3);
+      const double c = ncc(cell);
+      if (std::isnan(c)) continue;
+      ++cells;
+      agreeing += c >= opt.min_correlation;
     }
-  if (!(saa > 1.0 * n) || !(sbb > 1.0 * n)) return res;  // flat: std below 1 gray level
-  res.correlation = sab / std::sqrt(saa * sbb);
-  res.ok = res.correlation >= opt.min_correlation;
+  res.ok = res.correlation >= opt.min_correlation && 2 * agreeing >= cells;
   return res;
 }
 
