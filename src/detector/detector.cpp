@@ -542,7 +542,7 @@ PoseAlignment Detector::alignPose(const cv::Mat& image, const Intrinsics& camera
   try {
     if (object < 0 || object >= objectCount() || !cMo.isFinite()) return out;
     const RegisteredObject& e = objects_[static_cast<size_t>(object)];
-    if (!e.model.target || e.pyramid.empty() || !validateImage(image, camera).empty()) return out;
+    if (!e.model.target || !e.dense_usable || !validateImage(image, camera).empty()) return out;
     cv::Mat gray = image;
     if (image.channels() == 3) cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
     if (image.channels() == 4) cv::cvtColor(image, gray, cv::COLOR_BGRA2GRAY);

@@ -196,8 +196,9 @@ class Detector {
   /// Aligns the object's reference with `image` starting from the pose cMo (e.g. a tracker's):
   /// the dense ECC refinement of the refined pose method (options.dense), on the homography cMo
   /// predicts, then the pose from the grid it maps. ok = false (never a throw) when the object
-  /// has no usable reference pyramid (2D-only, distorted reference camera, pattern region not a
-  /// rectangle), the pattern is behind the camera, the image is unusable, or ECC fails, moves a
+  /// has no usable reference pyramid (2D-only, distorted reference camera; a pattern region that
+  /// is not a rectangle masks the template), the pattern is behind the camera, the image is
+  /// unusable, or ECC fails, moves a
   /// corner more than dense.max_corner_shift_px or ends below dense.min_correlation.
   /// dense: the refinement's options (nullptr: options().dense).
   PoseAlignment alignPose(const cv::Mat& image, const Intrinsics& camera, int object,
