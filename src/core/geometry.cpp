@@ -30,22 +30,26 @@ Eigen::Vector2d polygonCentroid(const std::vector<Eigen::Vector2d>& polygon) {
 
 std::vector<Eigen::Vector2d> clipToBox(const std::vector<Eigen::Vector2d>& polygon,
                                        const Eigen::Vector2d& lo, const Eigen::Vector2d& hi) {
+  return clipToConvex(polygon, {lo, Eigen::Vector2d(hi.x(), lo.y()), hi, Eigen::Vector2d(lo.x(), hi.y())});
+}
+
+std::vector<Eigen::Vector2d> clipToConvex(const std::vector<Eigen::Vector2d>& polygon,
+                                          const std::vector<Eigen::Vector2d>& convex) {
+  if (convex.size() < 3) return {};
+  const double orientation = signedArea(convex) >= 0 ? 1 : -1;
   std::vector<Eigen::Vector2d> out = polygon, in;
-  // One half-plane per box side: coordinate `axis` times `sign` <= `sign` x bound.
-  for (int side = 0; side < 4 && !out.empty(); ++side) {
-    const int axis = side % 2;
-    const double sign = side < 2 ? -1 : 1;
-    const double bound = side < 2 ? lo[axis] : hi[axis];
-    auto inside = [&](const Eigen::Vector2d& p) { return sign * (p[axis] - bound) <= 0; };
+  for (size_t e = 0; e < convex.size() && !out.empty(); ++e) {
+    const Eigen::Vector2d& c = convex[e];
+    const Eigen::Vector2d d = convex[(e + 1) % convex.size()] - c;
+    // >= 0: on the inner side of the edge (left of it for a positive winding).
+    auto side = [&](const Eigen::Vector2d& p) { return orientation * (d.x() * (p.y() - c.y()) - d.y() * (p.x() - c.x())); };
     in.swap(out);
     out.clear();
     for (size_t i = 0; i < in.size(); ++i) {
       const Eigen::Vector2d &a = in[i], &b = in[(i + 1) % in.size()];
-      if (inside(a)) out.push_back(a);
-      if (inside(a) != inside(b)) {
-        const double t = (bound - a[axis]) / (b[axis] - a[axis]);
-        out.push_back(a + t * (b - a));
-      }
+      const double sa = side(a), sb = side(b);
+      if (sa >= 0) out.push_back(a);
+      if ((sa >= 0) != (sb >= 0)) out.push_back(a + sa / (sa - sb) * (b - a));
     }
   }
   return out;

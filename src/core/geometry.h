@@ -24,6 +24,10 @@ Eigen::Vector2d polygonCentroid(const std::vector<Eigen::Vector2d>& polygon);
 /// [lo, hi] (Sutherland-Hodgman): its area is the intersection's; empty when they do not meet.
 std::vector<Eigen::Vector2d> clipToBox(const std::vector<Eigen::Vector2d>& polygon,
                                        const Eigen::Vector2d& lo, const Eigen::Vector2d& hi);
+/// The part of a simple polygon (any winding, convex or not) inside a convex polygon (any
+/// winding; Sutherland-Hodgman, one half-plane per edge): its area is the intersection's.
+std::vector<Eigen::Vector2d> clipToConvex(const std::vector<Eigen::Vector2d>& polygon,
+                                          const std::vector<Eigen::Vector2d>& convex);
 
 /// Isotropic (Hartley) normalisation: the similarity T with T x = s (x - c), c the centroid and
 /// s making the mean distance from it sqrt(2) (s = 1 for coincident points).

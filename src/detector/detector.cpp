@@ -102,6 +102,19 @@ Features extractFeatures(const cv::Mat& gray, const Intrinsics& camera, const Si
   return f;
 }
 
+// The region of the reference an instance is verified on: the pattern region, or when that only
+// bounds the pattern, its part inside the convex hull of the instance's inliers.
+std::vector<Eigen::Vector2d> verificationRegion(const RegisteredObject& e, const MatchCandidate& cand) {
+  if (e.model.pattern_region_exact) return e.polygon_und_px;
+  std::vector<cv::Point2f> pts, hull;
+  for (const Correspondence& c : cand.inliers) pts.push_back(e.index.features.keypoints[static_cast<size_t>(c.ref)].pt);
+  if (pts.size() < 3) return {};
+  cv::convexHull(pts, hull);
+  std::vector<Eigen::Vector2d> convex;
+  for (const cv::Point2f& p : hull) convex.emplace_back(p.x, p.y);
+  return clipToConvex(e.polygon_und_px, convex);
+}
+
 // Dense refinement of H (undistorted reference px -> undistorted scene px) on `image`.
 DenseRefineResult refineDense(const RegisteredObject& e, const Eigen::Matrix3d& H,
                               const cv::Mat& image, const Intrinsics& camera,
@@ -360,9 +373,9 @@ int Detector::addObject(const ObjectModel& object) {
   e.index = buildReferenceIndex(std::move(f), polygon, opt_.match);
   e.polygon_und_px = e.index.polygon_px;
   e.pyramid = buildReferencePyramid(object.reference);
-  // Dense refinement needs an undistorted reference; a region that is not its bounding box is
-  // a mask on the template.
-  e.dense_usable = object.target && (!object.camera || !object.camera->hasDistortion());
+  // Dense refinement needs an undistorted reference and a region that is the pattern (one that
+  // is not its bounding box is a mask on the template).
+  e.dense_usable = object.target && (!object.camera || !object.camera->hasDistortion()) && object.pattern_region_exact;
   double minx = 1e300, miny = 1e300, maxx = -1e300, maxy = -1e300;
   for (const Eigen::Vector2d& p : e.polygon_und_px) {
     minx = std::min(minx, p.x()), maxx = std::max(maxx, p.x());
@@ -509,7 +522,7 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
         continue;
       }
       if (opt.verify.enabled) {
-        const VerifyResult v = verifyInstance(e.pyramid, e.polygon_und_px, scene.image, camera, cand.H, opt.verify);
+        const VerifyResult v = verifyInstance(e.pyramid, verificationRegion(e, cand), scene.image, camera, cand.H, opt.verify);
         d.correlation = v.correlation;
         if (!v.ok) {
           ++verify_failures;

@@ -147,7 +147,7 @@ ObjectModel loadObjectDefinition(const std::string& path) {
   const YamlFile f(path);
   const YAML::Node& r = f.root();
   f.onlyKeys(r, "", {"name", "reference_image", "camera", "reference_pose", "pattern_region",
-                     "pattern_plane"});
+                     "pattern_plane", "pattern_region_exact"});
   const std::string name = f.string(r, "name", fs::path(path).stem().string());
 
   const std::string image_path = f.resolve(f.string(r, "reference_image"));
@@ -195,7 +195,9 @@ ObjectModel loadObjectDefinition(const std::string& path) {
     if (f.has(r, "pattern_plane.normal")) normal = f.vec3(r, "pattern_plane.normal");
     offset = f.number(r, "pattern_plane.offset", 0.0);
   }
-  return makeObjectModel(name, image.image, camera, ref_cMo, polygon, normal, offset, path);
+  ObjectModel m = makeObjectModel(name, image.image, camera, ref_cMo, polygon, normal, offset, path);
+  m.pattern_region_exact = f.boolean(r, "pattern_region_exact", true);
+  return m;
 }
 
 }  // namespace refgrasp::detector

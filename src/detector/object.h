@@ -37,6 +37,11 @@ struct ObjectModel {
   std::optional<Intrinsics> camera;      ///< reference camera (may carry distortion)
   std::optional<Pose> reference_cMo;     ///< object frame in the reference camera frame
   std::vector<Eigen::Vector2d> pattern_polygon_px;  ///< reference px (as in the image)
+  /// The polygon is the pattern's outline (traced, a rectangle's corners, the whole image of a
+  /// texture). false: it only bounds the pattern (e.g. a whole photo around a tag, the object
+  /// somewhere in it with other things around): verification then compares only the part of it
+  /// the instance's matches cover, and the dense refinement is not used.
+  bool pattern_region_exact = true;
   Eigen::Vector3d plane_normal_o = Eigen::Vector3d::UnitZ();
   double plane_offset_m = 0;
   /// Pattern corners TL, TR, BR, BL in reference px (as in the image): the polygon itself when

@@ -255,6 +255,7 @@ Reference fromTag(const cv::Mat& photo, const Intrinsics& camera, const TagOptio
   r.method = "apriltag " + o.family + " id " + std::to_string(ids[pick]);
   if (o.region_px.empty()) {
     r.pattern_region_px = photoMinusTag(c, camera);
+    r.region_exact = false;  // the photo shows more than the object around the tag
   } else {
     if (o.region_px.size() < 3) refuse("--region: needs at least 3 points");
     for (const auto& p : o.region_px)
@@ -291,6 +292,8 @@ void writeObjectDefinition(const std::string& yaml_path, const std::string& name
     out << (i ? ", " : "") << "[" << yamlNumber(ref.pattern_region_px[i].x()) << ", "
         << yamlNumber(ref.pattern_region_px[i].y()) << "]";
   out << "]\n";
+  if (!ref.region_exact)
+    out << "pattern_region_exact: false   # the photo minus the tag: it bounds the pattern, not its outline\n";
   if (!out.flush()) throw OutputError(yaml_path, std::string("write failed: ") + std::strerror(errno));
   out.close();
   detector::loadObjectDefinition(yaml_path);  // the detector must accept what we wrote

@@ -23,6 +23,9 @@ namespace refgrasp::reference {
 struct Reference {
   Pose cMo;                                        ///< object frame in the photo's camera frame
   std::vector<Eigen::Vector2d> pattern_region_px;  ///< simple polygon in the photo
+  /// The region is the pattern's outline (corners, --region); false: it only bounds it (the photo
+  /// minus the tag), written as pattern_region_exact: false.
+  bool region_exact = true;
   std::array<Eigen::Vector2d, 4> corners_px;       ///< rectangle / tag corners TL, TR, BR, BL (photo px)
   double width_m = 0, height_m = 0;                ///< the rectangle's (the tag's) size
   double rms_px = 0;                               ///< reprojection RMS of the four corners

@@ -58,3 +58,21 @@ TEST(Geometry, ClipToBoxKeepsTheInsidePart) {
   // Entirely outside.
   EXPECT_TRUE(clipToBox({Vec2(11, 0), Vec2(20, 0), Vec2(15, 5)}, lo, hi).empty());
 }
+
+TEST(Geometry, ClipToConvexKeepsTheInsidePart) {
+  // The triangle x + y <= 10 (x, y >= 0), given in either winding, clips the 10 x 10 square to it.
+  const std::vector<Vec2> square = {Vec2(0, 0), Vec2(10, 0), Vec2(10, 10), Vec2(0, 10)};
+  const std::vector<Vec2> tri = {Vec2(0, 0), Vec2(10, 0), Vec2(0, 10)}, tri_cw = {Vec2(0, 0), Vec2(0, 10), Vec2(10, 0)};
+  EXPECT_NEAR(signedArea(clipToConvex(square, tri)), 50, 1e-12);
+  EXPECT_NEAR(signedArea(clipToConvex(square, tri_cw)), 50, 1e-12);
+  // A concave subject with a hole reached through a slit (as make_reference's photo minus a tag):
+  // the 10 x 10 square minus [4, 6]^2, clipped to the triangle: 50 - 2 (the hole's part below
+  // x + y = 10 is the 2 x 2 square minus the half above the diagonal: 4 - 2).
+  const std::vector<Vec2> holed = {Vec2(5, 0),  Vec2(10, 0), Vec2(10, 10), Vec2(0, 10), Vec2(0, 0),
+                                   Vec2(5, 0),  Vec2(5, 4),  Vec2(4, 4),   Vec2(4, 6),  Vec2(6, 6),
+                                   Vec2(6, 4),  Vec2(5, 4)};
+  EXPECT_NEAR(std::abs(signedArea(clipToConvex(holed, tri))), 50 - 2, 1e-12);
+  // Disjoint: empty; a degenerate clip polygon: empty.
+  EXPECT_TRUE(clipToConvex({Vec2(11, 11), Vec2(20, 11), Vec2(15, 15)}, tri).empty());
+  EXPECT_TRUE(clipToConvex(square, {Vec2(0, 0), Vec2(1, 1)}).empty());
+}
