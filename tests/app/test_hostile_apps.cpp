@@ -137,9 +137,10 @@ TEST(HostileDetectObject, BadFilesAndOptionsExit2AndAFullDiskExit3) {
   objectCase(objectFile("twice.yaml", kPose + "camera: " + kObjectCamera + "\n"), "twice.yaml: camera: given twice");
   objectCase(objectFile("nested.yaml", "reference_pose: {translation: [0, 0, 0.5], rotaton_vector: [0, 0, 0]}\n"),
              "reference_pose.rotaton_vector: unknown field (did you mean rotation_vector?)");
+  // The example: 100,000 points had no answer after 30 s (quadratic simplicity test).
   std::string region = "pattern_region: [";
-  for (int i = 0; i < 5000; ++i) region += (i ? ", [" : "[") + std::to_string(i % 400) + ", " + std::to_string(i % 7) + "]";
-  objectCase(objectFile("region.yaml", kPose + region + "]\n"), "pattern_region: 5000 points, more than the limit of 1000");
+  for (int i = 0; i < 100000; ++i) region += (i ? ", [" : "[") + std::to_string(i % 400) + ", " + std::to_string(i % 7) + "]";
+  objectCase(objectFile("region.yaml", kPose + region + "]\n"), "pattern_region: 100000 points, more than the limit of 1000");
   objectCase(objectFile("bombref.yaml", kPose, write("bombref.png", pngDeclaring(20000, 20000))),
              "reference_image: " + (dir() / "bombref.png").string() + ": PNG declares 20000x20000");
   const std::string fifo = fifoPath();
@@ -178,6 +179,9 @@ TEST(HostileSimSearchDemo, BadOptionsFilesAndOutputsAreOneLineWithTheDocumentedC
   scenarioCase(scenarioWith("rotaton", "grasp_frame: {translation: [0.0, 0.0, 0.035], rotation_vector",
                             "grasp_frame: {translation: [0.0, 0.0, 0.035], rotaton_vector"),
                "objects[0].grasp_frame.rotaton_vector: unknown field (did you mean rotation_vector?)");
+  scenarioCase(scenarioWith("pose_rotaton", "pose: {translation: [1.30, 1.1, 0.82], rotation_vector",
+                            "pose: {translation: [1.30, 1.1, 0.82], rotaton_vector"),
+               "objects[0].pose.rotaton_vector: unknown field (did you mean rotation_vector?)");
   scenarioCase(scenarioWith("twice", "seed: 1\n", "seed: 1\nseed: 2\n"), "seed: given twice");
   scenarioCase(scenarioWith("duration", "max_duration_s: 120", "max_duration_s: 1e12"), "max_duration_s: must be in (0, 3600] s");
   scenarioCase(scenarioWith("texture", kSource + "/media/backgrounds/wall.png", kSource + "/README.md"), "not an image in a supported format");
@@ -208,6 +212,10 @@ TEST(HostileSimEnonDemo, BadOptionsFilesAndOutputsAreOneLineWithTheDocumentedCod
   const std::string file = write("plain_file2", "x");
   expectOneLine(run("sim_enon_demo", base + " --out " + file + "/sub --duration 0.1"), 3, file + "/sub: cannot create folder",
                 "--out below a file");
+  // The crash: an uncaught cv::Exception from a 1e10 px motion blur.
+  const std::string blur = scenarioWith("enon_blur", "  noise_sigma: 2.0", "  noise_sigma: 2.0\n  motion_blur_px: 1e10");
+  expectOneLine(run("sim_enon_demo", "--enon " + kEnon + " --scenario " + blur + out), 2,
+                "camera.motion_blur_px: must be at most 256", blur);
   const std::string bad = scenarioWith("enon_seed", "seed: 1", "seed: one");
   expectOneLine(run("sim_enon_demo", "--enon " + kEnon + " --scenario " + bad + out), 2, "seed: expected a number", bad);
   expectOneLine(run("sim_enon_demo", base + out + " --duration 0.1", "/dev/full"), 3, "cannot write to standard output",
