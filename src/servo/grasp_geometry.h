@@ -1,0 +1,69 @@
+#pragma once
+// Where the base must stand and which arm configuration reaches a grasp: the geometry behind the
+// approach and align phases, from the robot model and the grasp frame only (nothing here knows
+// a scenario).
+//
+// Frames: w world (z up; in the controller the odometry frame), b base (x forward, y left, z up),
+// e gripper (z_e approach axis, fingers close along x_e), g the object's grasp frame. The grasp
+// pose is e = g; the pre-grasp pose e* = g * Trans(0, 0, -pregrasp_distance_m), in front of the
+// object on the approach axis. aMb maps b coordinates into a; metres, radians.
+#include <Eigen/Core>
+
+#include "core/pose.h"
+#include "robot/kinematics.h"
+
+namespace refgrasp::servo {
+
+/// An arm configuration for a gripper pose.
+struct ArmReach {
+  bool ok = false;           ///< converged within the tolerances and inside the joint limits
+  Eigen::VectorXd q;         ///< arm joints (rad)
+  Pose bMe;                  ///< the gripper pose q gives
+  double position_error_m = 0, rotation_error_rad = 0;  ///< to the requested pose components
+  double joint_margin = 0;   ///< smallest distance to a limit, as a fraction of the joint's range
+};
+
+/// The arm's comfortable "reach forward" configuration: the gripper at height `z_m` with
+/// orientation `bRe`, in the vertical plane of the shoulder (y = the arm mount's y). Five equations
+/// for five joints, solved by damped Newton steps from `q_start` (or from mid-range joints when
+/// empty). Its x is what the arm reaches in front of the base in that orientation.
+ArmReach reachInShoulderPlane(const robot::ArmKinematics& arm, const Eigen::Matrix3d& bRe,
+                              double z_m, const Eigen::VectorXd& q_start = {});
+
+/// The base pose for a grasp: standing so that the pre-grasp pose wMed is reached by the arm
+/// configuration `reach` (computed for bRe = the pre-grasp orientation seen from that base).
+struct BaseGoal {
+  Pose wMb;                 ///< base pose in w (on the floor, z = 0, rotation about z only)
+  double heading_rad = 0;   ///< of x_b, counter-clockwise from x_w
+  ArmReach reach;           ///< the arm configuration reaching wMed from wMb
+};
+
+/// Base heading: along the horizontal projection of the approach axis z_e* (the base faces the
+/// object's grasp side). Position: wMed's origin minus the reach's horizontal offset.
+/// `q_start` seeds the arm solution (e.g. the previous goal's).
+BaseGoal baseGoalFor(const robot::ArmKinematics& arm, const Pose& wMed,
+                     const Eigen::VectorXd& q_start = {});
+
+/// The base's way to a goal pose G with a unicycle: pure pursuit onto the approach line (through
+/// G along x_G), then the Pioneer servo on the point Q = G + lookahead x_G. The base aims at a
+/// carrot on the line `lookahead_m` ahead of its own projection on it (never past Q) and keeps Q
+/// at depth Z* = lookahead_m: it joins the line, then stops on G facing along it.
+struct ApproachPoints {
+  Eigen::Vector3d bAim;    ///< the carrot, base frame (z = 0)
+  Eigen::Vector3d bDepth;  ///< Q, base frame (z = 0)
+  Eigen::Vector3d bAhead;  ///< a point far along x_G from the base: face it to take G's heading
+  double depth_desired_m = 0;
+  double position_error_m = 0;  ///< |base origin - G| on the floor
+  double heading_error_rad = 0; ///< heading of G minus the base's, in (-pi, pi]
+  double along_m = 0;           ///< signed distance of the base past G along x_G (< 0 before it)
+  double lateral_m = 0;         ///< signed distance of the base from the line (left of x_G > 0)
+};
+ApproachPoints approachPoints(const Pose& wMb, const Pose& wMg, double lookahead_m);
+
+/// Smallest distance of q to a joint limit as a fraction of that joint's range (0 at a limit).
+double jointMargin(const robot::ArmModel& arm, const Eigen::VectorXd& q);
+
+/// Heading (rad, counter-clockwise from x) of a pose's x axis projected on the floor.
+double planarHeading(const Pose& wMb);
+
+}  // namespace refgrasp::servo
