@@ -1,14 +1,19 @@
 #!/usr/bin/env bash
-# The main job: installs dependencies (Debian 12 packages), builds the apps (Release) and runs the
-# simulated search demo on config/scenarios/${SCENARIO:-table_single}.yaml. Pictures and a JSON-lines
-# log go to out/demo/. Extra arguments are passed to build/app/sim_search_demo (see --help).
+# The main job: installs dependencies (Debian 12 packages), builds the apps (Release) and runs
+# search-approach-grasp on the simulated enon with config/scenarios/${SCENARIO:-table_single}.yaml:
+# the enon finds the target, drives to it, aligns its gripper by visual servoing and grasps it.
+# Writes out/demo/grasp.mp4 (the camera view, annotated) and out/demo/log/ (a recording of the
+# frames used plus control.jsonl); prints the summary line. Extra arguments go to
+# build/app/enon_grasp (see --help), e.g. --oracle or --seed 4.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install_deps.sh
 JOBS=${JOBS:-$(nproc)}
 BUILD=${BUILD_DIR:-build}
 cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=Release > /dev/null
-echo "demo: building sim_search_demo (first build takes a few minutes)"
-cmake --build "$BUILD" -j "$JOBS" --target sim_search_demo detect_object
-"$BUILD"/app/sim_search_demo --scenario "config/scenarios/${SCENARIO:-table_single}.yaml" \
-  --out out/demo "$@"
+echo "demo: building enon_grasp (first build takes a few minutes)"
+cmake --build "$BUILD" -j "$JOBS" --target enon_grasp pose_replay detect_object
+mkdir -p out/demo
+rm -rf out/demo/log
+"$BUILD"/app/enon_grasp --backend sim --scenario "config/scenarios/${SCENARIO:-table_single}.yaml" \
+  --video out/demo/grasp.mp4 --log out/demo/log "$@"

@@ -76,7 +76,8 @@ BaseGoal baseGoalFor(const robot::ArmKinematics& arm, const Pose& wMed,
   return g;
 }
 
-ApproachPoints approachPoints(const Pose& wMb, const Pose& wMG, double lookahead_m) {
+ApproachPoints approachPoints(const Pose& wMb, const Pose& wMG, double lookahead_m,
+                              double waypoint_m) {
   ApproachPoints a;
   const Eigen::Vector2d g = wMG.t.head<2>(), p = wMb.t.head<2>();
   const double hg = planarHeading(wMG);
@@ -86,12 +87,13 @@ ApproachPoints approachPoints(const Pose& wMb, const Pose& wMG, double lookahead
   a.position_error_m = (p - g).norm();
   a.heading_error_rad = std::remainder(hg - planarHeading(wMb), 2 * M_PI);
   const double carrot = std::min(a.along_m + lookahead_m, lookahead_m);
-  const Eigen::Vector2d c = g + carrot * dir, q = g + lookahead_m * dir;
+  const Eigen::Vector2d c = g + carrot * dir, q = g + lookahead_m * dir, w = g - waypoint_m * dir;
   const Pose bMw = wMb.inverse();
   a.bAim = bMw * Eigen::Vector3d(c.x(), c.y(), 0);
   a.bDepth = bMw * Eigen::Vector3d(q.x(), q.y(), 0);
+  a.bWaypoint = bMw * Eigen::Vector3d(w.x(), w.y(), 0);
   a.bAhead = bMw * Eigen::Vector3d(p.x() + 10 * dir.x(), p.y() + 10 * dir.y(), 0);
-  a.bAim.z() = a.bDepth.z() = a.bAhead.z() = 0;
+  a.bWaypoint.z() = a.bAim.z() = a.bDepth.z() = a.bAhead.z() = 0;
   a.depth_desired_m = lookahead_m;
   return a;
 }

@@ -44,21 +44,23 @@ struct BaseGoal {
 BaseGoal baseGoalFor(const robot::ArmKinematics& arm, const Pose& wMed,
                      const Eigen::VectorXd& q_start = {});
 
-/// The base's way to a goal pose G with a unicycle: pure pursuit onto the approach line (through
-/// G along x_G), then the Pioneer servo on the point Q = G + lookahead x_G. The base aims at a
-/// carrot on the line `lookahead_m` ahead of its own projection on it (never past Q) and keeps Q
-/// at depth Z* = lookahead_m: it joins the line, then stops on G facing along it.
+/// The points a unicycle base steers by on its way to a goal pose G (servo/servo_tasks.h
+/// BaseApproachTask::approach): the approach line runs through G along x_G; W lies on it
+/// `waypoint_m` before G, Q `lookahead_m` after G; the carrot lies on it `lookahead_m` ahead of
+/// the base's own projection on it, never past Q. Base frame, z = 0.
 struct ApproachPoints {
-  Eigen::Vector3d bAim;    ///< the carrot, base frame (z = 0)
-  Eigen::Vector3d bDepth;  ///< Q, base frame (z = 0)
-  Eigen::Vector3d bAhead;  ///< a point far along x_G from the base: face it to take G's heading
+  Eigen::Vector3d bWaypoint = Eigen::Vector3d::Zero();  ///< W
+  Eigen::Vector3d bAim = Eigen::Vector3d::Zero();    ///< the carrot
+  Eigen::Vector3d bDepth = Eigen::Vector3d::Zero();  ///< Q, base frame (z = 0)
+  Eigen::Vector3d bAhead = Eigen::Vector3d::Zero();  ///< a point far along x_G from the base: face it to take G's heading
   double depth_desired_m = 0;
   double position_error_m = 0;  ///< |base origin - G| on the floor
   double heading_error_rad = 0; ///< heading of G minus the base's, in (-pi, pi]
   double along_m = 0;           ///< signed distance of the base past G along x_G (< 0 before it)
   double lateral_m = 0;         ///< signed distance of the base from the line (left of x_G > 0)
 };
-ApproachPoints approachPoints(const Pose& wMb, const Pose& wMg, double lookahead_m);
+ApproachPoints approachPoints(const Pose& wMb, const Pose& wMg, double lookahead_m,
+                              double waypoint_m);
 
 /// Smallest distance of q to a joint limit as a fraction of that joint's range (0 at a limit).
 double jointMargin(const robot::ArmModel& arm, const Eigen::VectorXd& q);

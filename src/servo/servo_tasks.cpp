@@ -87,6 +87,14 @@ Eigen::Matrix<double, 6, Eigen::Dynamic> gripperJacobian(const robot::ArmKinemat
   return J;
 }
 
+Twist baseTwistAt(const Pose& bMc, double v, double w) {
+  const Eigen::Matrix3d cRb = bMc.R.transpose();
+  Twist c;
+  c.v = cRb * (v * Eigen::Vector3d::UnitX() + w * Eigen::Vector3d::UnitZ().cross(bMc.t));
+  c.w = cRb * (w * Eigen::Vector3d::UnitZ());
+  return c;
+}
+
 // ---- head --------------------------------------------------------------------------------------
 
 void HeadPointingOptions::check() const {
@@ -113,7 +121,8 @@ HeadPointingTask::HeadPointingTask(const robot::HeadModel& head, const HeadPoint
 
 HeadPointingTask::~HeadPointingTask() = default;
 
-HeadCommand HeadPointingTask::compute(const Eigen::Vector3d& cP, double pan, double tilt) {
+HeadCommand HeadPointingTask::compute(const Eigen::Vector3d& cP, double pan, double tilt,
+                                      const Twist& cV_carrier) {
   HeadCommand out;
   if (!cP.allFinite() || cP.z() < 1e-3) return out;
   const double x = cP.x() / cP.z(), y = cP.y() / cP.z();
@@ -123,7 +132,14 @@ HeadCommand HeadPointingTask::compute(const Eigen::Vector3d& cP, double pan, dou
   impl_->sd.buildFrom(0, 0, cP.z());
   impl_->task.set_cVe(vpVelocityTwistMatrix());
   impl_->task.set_eJe(toVpMatrix(headJacobian(head_, pan, tilt)));
-  const vpColVector q = impl_->task.computeControlLaw();
+  vpColVector q = impl_->task.computeControlLaw();
+  // Feed-forward of the carrier's motion: the feature moves at L cV; cancel it through J^+.
+  vpColVector cV(6);
+  for (int i = 0; i < 3; ++i) {
+    cV[static_cast<unsigned>(i)] = cV_carrier.v[i];
+    cV[static_cast<unsigned>(i + 3)] = cV_carrier.w[i];
+  }
+  q -= impl_->task.getTaskJacobianPseudoInverse() * (impl_->task.getInteractionMatrix() * cV);
   double pan_rate = q[0], tilt_rate = q[1];
   double scale = 1.0;
   if (std::abs(pan_rate) > opt_.max_pan_radps) scale = opt_.max_pan_radps / std::abs(pan_rate);
@@ -143,6 +159,16 @@ void BaseApproachOptions::check() const {
   refgrasp::check(finitePositive(max_w_radps), "BaseApproachOptions.max_w_radps", "must be > 0");
   refgrasp::check(finitePositive(turn_in_place_rad) && turn_in_place_rad < M_PI / 2,
                   "BaseApproachOptions.turn_in_place_rad", "must be in (0, pi/2)");
+  refgrasp::check(finitePositive(lookahead_m), "BaseApproachOptions.lookahead_m", "must be > 0");
+  refgrasp::check(finitePositive(waypoint_m), "BaseApproachOptions.waypoint_m", "must be > 0");
+  refgrasp::check(finitePositive(line_tolerance_m), "BaseApproachOptions.line_tolerance_m",
+                  "must be > 0");
+  refgrasp::check(finitePositive(waypoint_tolerance_m) && waypoint_tolerance_m < waypoint_m,
+                  "BaseApproachOptions.waypoint_tolerance_m", "must be in (0, waypoint_m)");
+  refgrasp::check(finitePositive(along_tolerance_m), "BaseApproachOptions.along_tolerance_m",
+                  "must be > 0");
+  refgrasp::check(finitePositive(heading_tolerance_rad), "BaseApproachOptions.heading_tolerance_rad",
+                  "must be > 0");
 }
 
 // The virtual camera v sits at the base origin looking forward: z_v = x_b, x_v = -y_b, y_v = -z_b.
@@ -214,6 +240,75 @@ BaseCommand BaseApproachTask::compute(const Eigen::Vector3d& bAim, const Eigen::
   const double along = 1.0 - std::abs(out.bearing_rad) / opt_.turn_in_place_rad;
   out.v_mps = std::clamp(v[0], -opt_.max_v_mps, opt_.max_v_mps) * along;
   return out;
+}
+
+const char* toString(ApproachStage s) {
+  switch (s) {
+    case ApproachStage::kToWaypoint: return "to_waypoint";
+    case ApproachStage::kFaceLine: return "face_line";
+    case ApproachStage::kAlongLine: return "along_line";
+    case ApproachStage::kTurn: return "turn";
+    case ApproachStage::kDone: return "done";
+  }
+  return "?";
+}
+
+BaseCommand BaseApproachTask::approach(const Pose& wMb, const Pose& wMG) {
+  const ApproachPoints a = approachPoints(wMb, wMG, opt_.lookahead_m, opt_.waypoint_m);
+  if (!stage_) {
+    const bool near_line = std::abs(a.lateral_m) <= opt_.line_tolerance_m &&
+                           a.along_m <= -opt_.waypoint_m + opt_.waypoint_tolerance_m;
+    stage_ = near_line ? ApproachStage::kAlongLine : ApproachStage::kToWaypoint;
+  }
+  BaseCommand c;
+  // Each stage hands over to the next within the same period when it is already done.
+  for (int guard = 0; guard < 5; ++guard) {
+    switch (*stage_) {
+      case ApproachStage::kToWaypoint:
+        if (a.bWaypoint.norm() >= opt_.waypoint_tolerance_m) {
+          // Pioneer's servo on W itself: its image x, and log(Z / Z*) with Z* half the tolerance.
+          // W behind the base: the same servo in a virtual camera looking backwards (the point
+          // mirrored, the speed negated): the base backs up to it instead of turning its back
+          // on the object.
+          const bool behind = a.bWaypoint.x() < 0;
+          const Eigen::Vector3d w = behind ? Eigen::Vector3d(-a.bWaypoint.x(), -a.bWaypoint.y(), 0)
+                                           : a.bWaypoint;
+          c = compute(w, w, 0.5 * opt_.waypoint_tolerance_m);
+          if (behind) c.v_mps = -c.v_mps;
+          break;
+        }
+        stage_ = ApproachStage::kFaceLine;
+        continue;
+      case ApproachStage::kFaceLine:
+        if (std::abs(std::atan2(a.bDepth.y(), a.bDepth.x())) >= opt_.heading_tolerance_rad) {
+          c = face(a.bDepth);
+          break;
+        }
+        stage_ = ApproachStage::kAlongLine;
+        continue;
+      case ApproachStage::kAlongLine:
+        if (std::abs(a.along_m) >= opt_.along_tolerance_m) {
+          c = compute(a.bAim, a.bDepth, a.depth_desired_m);
+          break;
+        }
+        stage_ = ApproachStage::kTurn;
+        continue;
+      case ApproachStage::kTurn:
+        if (std::abs(a.heading_error_rad) >= opt_.heading_tolerance_rad) {
+          c = face(a.bAhead);
+          break;
+        }
+        stage_ = ApproachStage::kDone;
+        continue;
+      case ApproachStage::kDone:
+        c = BaseCommand();
+        break;
+    }
+    break;
+  }
+  c.stage = *stage_;
+  c.points = a;
+  return c;
 }
 
 // ---- arm ---------------------------------------------------------------------------------------

@@ -21,11 +21,13 @@
 // coordinates into a (x_a = R x_b + t); metres, radians, seconds.
 #include <Eigen/Core>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "core/pose.h"
 #include "robot/enon_model.h"
 #include "robot/kinematics.h"
+#include "servo/grasp_geometry.h"
 
 namespace refgrasp::servo {
 
@@ -51,12 +53,16 @@ Eigen::Matrix<double, 6, 2> headJacobian(const robot::HeadModel& head, double pa
 Eigen::Matrix<double, 6, Eigen::Dynamic> gripperJacobian(const robot::ArmKinematics& arm,
                                                          const Eigen::VectorXd& q);
 
+/// Velocity (in frame c, reference point c's origin) of a frame c fixed on the base at bMc when
+/// the base moves at (v_mps along x_b, w_radps about z_b).
+Twist baseTwistAt(const Pose& bMc, double v_mps, double w_radps);
+
 // ---- head ------------------------------------------------------------------------------------
 
 struct HeadPointingOptions {
   GainOptions gain{3.0, 1.5, 20.0};
-  double max_pan_radps = 1.0;
-  double max_tilt_radps = 0.8;
+  double max_pan_radps = 1.5;
+  double max_tilt_radps = 1.0;
   /// Centred when |x| and |y| (normalised image coordinates, x = X / Z) are below this.
   double tolerance = 0.02;
   void check() const;
@@ -78,7 +84,11 @@ class HeadPointingTask {
 
   /// \param cP the point to centre in the camera frame at the current head state (metres, Z > 0;
   /// a point behind the camera gives zero rates and converged = false).
-  HeadCommand compute(const Eigen::Vector3d& cP, double pan_rad, double tilt_rad);
+  /// \param cV_carrier the camera's velocity caused by everything but the head (the base's
+  /// motion), in the camera frame: fed forward, q_dot = -lambda J^+ e - J^+ L cV_carrier, so
+  /// that the point stays centred while the base turns.
+  HeadCommand compute(const Eigen::Vector3d& cP, double pan_rad, double tilt_rad,
+                      const Twist& cV_carrier = {});
   const HeadPointingOptions& options() const { return opt_; }
 
  private:
@@ -90,19 +100,37 @@ class HeadPointingTask {
 
 // ---- base ------------------------------------------------------------------------------------
 
+/// Stages of BaseApproachTask::approach.
+enum class ApproachStage {
+  kToWaypoint,  ///< far off the approach line: to W (Pioneer servo on W itself)
+  kFaceLine,    ///< at W: turn in place to face along the line
+  kAlongLine,   ///< pure pursuit of the carrot, Pioneer depth on Q, until on G along the line
+  kTurn,        ///< on G: turn in place to G's heading (what is left is lateral)
+  kDone
+};
+const char* toString(ApproachStage s);  ///< "to_waypoint", "face_line", "along_line", "turn", "done"
+
 struct BaseApproachOptions {
   GainOptions turn_gain{3.0, 2.0, 20.0};   ///< on the image x of the aimed point
   GainOptions drive_gain{3.0, 1.0, 10.0};  ///< on log(Z / Z*)
-  double max_v_mps = 0.5;
-  double max_w_radps = 0.8;
+  double max_v_mps = 0.6;
+  double max_w_radps = 1.0;
   /// The speed is scaled by 1 - |bearing| / turn_in_place_rad: the base turns in place while
   /// the aimed point is more than this off its x axis.
   double turn_in_place_rad = 0.8;
+  double lookahead_m = 0.5;          ///< carrot distance; Q's distance after G (Z* on the line)
+  double waypoint_m = 0.5;           ///< W's distance before G
+  double line_tolerance_m = 0.15;    ///< closer to the line than this (and before W): no waypoint
+  double waypoint_tolerance_m = 0.05;
+  double along_tolerance_m = 0.01;   ///< on G along the line
+  double heading_tolerance_rad = 0.015;
   void check() const;
 };
 
 struct BaseCommand {
   double v_mps = 0, w_radps = 0;
+  ApproachStage stage = ApproachStage::kDone;  ///< approach() only
+  ApproachPoints points;                       ///< approach() only
   double bearing_rad = 0;    ///< of the aimed point, counter-clockwise from x_b
   double depth_error_m = 0;  ///< Z - Z* of the depth point
 };
@@ -122,12 +150,18 @@ class BaseApproachTask {
                       double depth_desired_m);
   /// Turn in place to face `bAim` (v = 0).
   BaseCommand face(const Eigen::Vector3d& bAim);
+  /// To the goal pose wMG (the base pose w = world or odometry): stages ApproachStage, chosen
+  /// afresh after restart(): a base near the approach line (line_tolerance_m) and before W
+  /// starts along the line, any other at W. Zero velocity once done.
+  BaseCommand approach(const Pose& wMb, const Pose& wMG);
+  void restart() { stage_.reset(); }
   const BaseApproachOptions& options() const { return opt_; }
 
  private:
   struct Impl;
   BaseApproachOptions opt_;
   std::unique_ptr<Impl> impl_;
+  std::optional<ApproachStage> stage_;
 };
 
 // ---- arm -------------------------------------------------------------------------------------

@@ -167,12 +167,12 @@ TEST(HostileDetectObject, BadFilesAndOptionsExit2AndAFullDiskExit3) {
                 "detect_object: cannot write to standard output: No space left on device", "/dev/full");
 }
 
-TEST(HostileSimSearchDemo, BadOptionsFilesAndOutputsAreOneLineWithTheDocumentedCodes) {
-  const std::string out = " --out " + (dir() / "search").string();
-  expectOptionErrors("sim_search_demo", "--enon " + kEnon + " --scenario " + kScenario + out,
-                     {"--bogus", "--max-time nan", "--pan-step 1e-300"}, 4);
+TEST(HostileEnonGrasp, BadOptionsFilesAndOutputsAreOneLineWithTheDocumentedCodes) {
+  const std::string base = "--backend sim --enon " + kEnon + " --scenario ";
+  expectOptionErrors("enon_grasp", base + kScenario + " --oracle",
+                     {"--bogus", "--max-time nan", "--max-time 0", "--seed -1"}, 2);
   const auto scenarioCase = [&](const std::string& file, const std::string& needle) {
-    expectOneLine(run("sim_search_demo", "--enon " + kEnon + " --scenario " + file + out), 4, needle, file);
+    expectOneLine(run("enon_grasp", base + file + " --oracle"), 2, needle, file);
   };
   scenarioCase(scenarioWith("blur", "  noise_sigma: 2.0", "  noise_sigma: 2.0\n  motion_blur_px: 1e10"),
                "camera.motion_blur_px: must be at most 256");
@@ -186,7 +186,8 @@ TEST(HostileSimSearchDemo, BadOptionsFilesAndOutputsAreOneLineWithTheDocumentedC
   scenarioCase(scenarioWith("duration", "max_duration_s: 120", "max_duration_s: 1e12"), "max_duration_s: must be in (0, 3600] s");
   scenarioCase(scenarioWith("texture", kSource + "/media/backgrounds/wall.png", kSource + "/README.md"), "not an image in a supported format");
   const auto enonCase = [&](const std::string& file, const std::string& needle) {
-    expectOneLine(run("sim_search_demo", "--enon " + file + " --scenario " + kScenario + out), 4, needle, file);
+    expectOneLine(run("enon_grasp", "--backend sim --enon " + file + " --scenario " + kScenario + " --oracle"), 2,
+                  needle, file);
   };
   enonCase(enonWith("period", "control_period_s: 0.02", "control_period_s: 1e-9"),
            "control_period_s: must be in [0.001, 1] s");
@@ -195,14 +196,14 @@ TEST(HostileSimSearchDemo, BadOptionsFilesAndOutputsAreOneLineWithTheDocumentedC
   enonCase(enonWith("joint", "name: shoulder_pitch,", "name: shoulder_pitch, thetaoffset_rad: 1,"),
            "arm.joints[0].thetaoffset_rad: unknown field (did you mean theta_offset_rad?)");
   const std::string fifo = fifoPath();
-  expectOneLine(run("sim_search_demo", "--enon " + kEnon + " --scenario " + fifo + out), 4, "is a FIFO", "fifo");
-  // The output folder below a regular file; stdout on a full disk (searching 0.1 s: not found).
-  const std::string file = write("plain_file", "x");
-  expectOneLine(run("sim_search_demo", "--enon " + kEnon + " --scenario " + kScenario + " --out " + file + "/sub"), 5,
-                file + "/sub: cannot create folder", "--out below a file");
-  expectOneLine(run("sim_search_demo", "--enon " + kEnon + " --scenario " + kScenario + out + " --max-time 0.1",
-                    "/dev/full"),
-                5, "cannot write to standard output", "/dev/full");
+  expectOneLine(run("enon_grasp", base + fifo + " --oracle"), 2, "is a FIFO", "fifo");
+  // The log folder below a regular file (exit 2, nothing started); the summary line of a
+  // successful grasp on a full disk: 4, the output failed.
+  const std::string file = write("plain_file_grasp", "x");
+  expectOneLine(run("enon_grasp", base + kScenario + " --oracle --log " + file + "/sub"), 2, file + "/sub",
+                "--log below a file");
+  expectOneLine(run("enon_grasp", base + kScenario + " --oracle", "/dev/full"), 4,
+                "cannot write to standard output", "/dev/full");
 }
 
 TEST(HostileSimEnonDemo, BadOptionsFilesAndOutputsAreOneLineWithTheDocumentedCodes) {
