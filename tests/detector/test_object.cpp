@@ -176,8 +176,15 @@ TEST(ShippedObjects, EveryDefinitionLoadsWith3dCorners) {
     ++n;
     EXPECT_EQ(m.name, e.path().stem().string());
     ASSERT_TRUE(m.has3d()) << e.path();
-    // Shipped objects are 0.2 m wide textures: corners 0.2 m apart in x.
-    EXPECT_NEAR((m.target->corners_o[1] - m.target->corners_o[0]).norm(), 0.2, 1e-9) << e.path();
+    // Shipped objects are 0.2 m wide textures: corners 0.2 m apart in x. The photo_* targets of
+    // scripts/make_grasp_scenarios.py have the grasp issue's face widths of 16-22 cm.
+    const double width = (m.target->corners_o[1] - m.target->corners_o[0]).norm();
+    if (e.path().stem().string().rfind("photo_", 0) == 0) {
+      EXPECT_GE(width, 0.16 - 1e-6) << e.path();
+      EXPECT_LE(width, 0.22 + 1e-6) << e.path();
+    } else {
+      EXPECT_NEAR(width, 0.2, 1e-9) << e.path();
+    }
   }
   EXPECT_GE(n, 5);
 }
