@@ -528,6 +528,13 @@ void sweepOctave(const si::Kernels& K, const Params& P, int o, const cv::Mat& in
   // the sweep's kernels, from the nearest layer whose values are there (a stored layer where the
   // sweep has made those rows and columns, the octave below, the input), each output with the
   // same arithmetic as in the sweep.
+  // The last patch recomputed of each layer (values exact, so valid for the whole call): the
+  // patches of the lower layers made for a higher one serve the lower layers' own requests.
+  struct PatchMemo {
+    int y0 = 0, y1 = -1, x0 = 0, x1 = -1;
+    std::vector<float> v;
+  };
+  std::vector<PatchMemo> memo(L);
   std::function<std::vector<float>(int, int, int, int, int)> patch = [&](int i, int y0, int y1, int x0,
                                                                           int x1) {
     const int pw = x1 - x0 + 1, ph = y1 - y0 + 1;
@@ -537,6 +544,22 @@ void sweepOctave(const si::Kernels& K, const Params& P, int o, const cv::Mat& in
         for (int x = x0; x <= x1; ++x)
           out[static_cast<size_t>(y - y0) * pw + x - x0] =
               kern[i] ? oct.row(i, y)[x] : prev->row(P.n_layers, 2 * y)[2 * x];
+      return out;
+    }
+    if (oct.g[i] && y0 < done_rows[i] && made(i, done_rows[i] - 1, x1)) {
+      // The rows the sweep has made read as they are, only the rows below recomputed.
+      const int split = done_rows[i];
+      const std::vector<float> below = patch(i, split, y1, x0, x1);
+      for (int y = y0; y < split; ++y) std::copy_n(oct.row(i, y) + x0, pw, out.begin() + static_cast<size_t>(y - y0) * pw);
+      std::copy_n(below.begin(), static_cast<size_t>(y1 - split + 1) * pw, out.begin() + static_cast<size_t>(split - y0) * pw);
+      return out;
+    }
+    PatchMemo& m = memo[i];
+    if (y0 >= m.y0 && y1 <= m.y1 && x0 >= m.x0 && x1 <= m.x1) {
+      const int mw = m.x1 - m.x0 + 1;
+      for (int y = y0; y <= y1; ++y)
+        std::copy_n(m.v.begin() + static_cast<size_t>(y - m.y0) * mw + (x0 - m.x0), pw,
+                    out.begin() + static_cast<size_t>(y - y0) * pw);
       return out;
     }
     const Kernel& k = *kern[i];
@@ -574,6 +597,8 @@ void sweepOctave(const si::Kernels& K, const Params& P, int o, const cv::Mat& in
       K.col_filter(col.data(), &o1, 1, pw, k.centre.data(), h);
       std::copy(line.begin(), line.begin() + pw, out.begin() + static_cast<size_t>(y - y0) * pw);
     }
+    m.y0 = y0, m.y1 = y1, m.x0 = x0, m.x1 = x1;
+    m.v = out;
     return out;
   };
   auto exact = [&](int layer, int r, int c, DogCube* cube) {
@@ -581,7 +606,7 @@ void sweepOctave(const si::Kernels& K, const Params& P, int o, const cv::Mat& in
     cube->r = r;
     cube->c = c;
     std::vector<float> g[4];
-    for (int l = 0; l < 4; ++l) g[l] = patch(layer - 1 + l, r - 1, r + 1, c - 1, c + 1);
+    for (int l = 3; l >= 0; --l) g[l] = patch(layer - 1 + l, r - 1, r + 1, c - 1, c + 1);  // top first: see memo
     for (int l = 0; l < 3; ++l)
       for (int k = 0; k < 9; ++k) cube->v[l][k / 3][k % 3] = g[l + 1][k] - g[l][k];
   };
