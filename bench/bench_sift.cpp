@@ -55,7 +55,7 @@ void usage() {
       "The issue's final table (wall clock, both extractors): on an otherwise idle machine run\n"
       "    build/bench/bench_sift\n"
       "  with no arguments (= --frames 200 --threads 2 --seed 1); it prints the load average before and\n"
-      "  after, and its own run time (about 2 minutes on an idle 2-core machine).\n"
+      "  after, and its own run time (2-3 minutes idle; 206 s of CPU time on a loaded 2-core VM).\n"
       "Usage: bench_sift [--frames N (default 200)] [--threads T (default 2)] [--seed S (default 1)]\n"
       "                  [--texture media/relative.png] [--only fast|opencv] [--help]\n"
       "       bench_sift --stages [--frames N]: the fast extractor only, 1 thread: stage CPU medians,\n"
