@@ -59,6 +59,8 @@ void visitFields(O& o, Visit&& v) {
   v("verify.enabled", o.verify.enabled);
   v("verify.min_correlation", o.verify.min_correlation);
   v("verify.compare_px", o.verify.compare_px);
+  v("verify.strong_correlation", o.verify.strong_correlation);
+  v("verify.min_strong_cells", o.verify.min_strong_cells);
 }
 
 // check() names fields "<Options>.<field>"; the file names them "<section>.<field>".

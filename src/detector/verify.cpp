@@ -13,6 +13,9 @@ void VerifyOptions::check() const {
   refgrasp::check(std::isfinite(min_correlation) && min_correlation >= -1 && min_correlation < 1,
                   "VerifyOptions.min_correlation", "must be in [-1, 1)");
   refgrasp::check(compare_px >= 8 && compare_px <= 1024, "VerifyOptions.compare_px", "must be in [8, 1024]");
+  refgrasp::check(std::isfinite(strong_correlation) && strong_correlation >= -1 && strong_correlation < 1,
+                  "VerifyOptions.strong_correlation", "must be in [-1, 1)");
+  refgrasp::check(min_strong_cells >= 0 && min_strong_cells <= 9, "VerifyOptions.min_strong_cells", "must be in [0, 9]");
 }
 
 VerifyResult verifyInstance(const std::vector<cv::Mat>& pyr, const std::vector<Eigen::Vector2d>& polygon,
@@ -126,9 +129,10 @@ VerifyResult verifyInstance(const std::vector<cv::Mat>& pyr, const std::vector<E
     return res;
   }
   // The pattern's box cut into 3 x 3 cells: of the cells with texture on both sides, at least
-  // half must agree on their own. A shared logo or word (a sibling product), or a repeated
-  // pattern aligned one period off, agrees in part of the pattern, not over most of it.
-  int cells = 0, agreeing = 0;
+  // half must agree on their own, and min_strong_cells strongly. A shared logo or word (a
+  // sibling product), or a repeated pattern aligned one period off, agrees in part of the
+  // pattern, not over most of it.
+  int cells = 0, agreeing = 0, strong = 0;
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) {
       const cv::Rect cell(j * tw / 3, i * th / 3, (j + 1) * tw / 3 - j * tw / 3, (i + 1) * th / 3 - i * th / 3);
@@ -136,8 +140,10 @@ VerifyResult verifyInstance(const std::vector<cv::Mat>& pyr, const std::vector<E
       if (std::isnan(c)) continue;
       ++cells;
       agreeing += c >= opt.min_correlation;
+      strong += c >= opt.strong_correlation;
     }
-  res.ok = res.correlation >= opt.min_correlation && 2 * agreeing >= cells;
+  res.strong_cells = strong;
+  res.ok = res.correlation >= opt.min_correlation && 2 * agreeing >= cells && strong >= std::min(opt.min_strong_cells, cells);
   return res;
 }
 

@@ -21,6 +21,12 @@ struct VerifyOptions {
   double min_correlation = 0.25;
   /// Comparison resolution: the pattern is compared on at most this many pixels on its longer side.
   int compare_px = 48;
+  /// Of the pattern's 3 x 3 cells with texture, at least min_strong_cells (or all of them when
+  /// fewer have texture) must correlate >= strong_correlation on their own: a true instance agrees
+  /// strongly over most of the pattern even when partly occluded (>= 4 cells on the realistic
+  /// sets), a shared logo or word over the cell or two it covers (<= 2 on photo clutter).
+  double strong_correlation = 0.7;
+  int min_strong_cells = 3;
   /// Throws std::invalid_argument "VerifyOptions.<field>: <problem>".
   void check() const;
 };
@@ -29,6 +35,7 @@ struct VerifyResult {
   bool ok = false;           ///< correlation >= min_correlation (false also when not computable)
   double correlation = 0;    ///< zero-mean NCC over the pattern pixels that land in the scene
   double visible_fraction = 0;  ///< of the pattern's compared pixels, those inside the scene image
+  int strong_cells = 0;      ///< 3 x 3 cells correlating >= strong_correlation on their own
 };
 
 /// Compares the reference (pyramid: level 0 = the reference image, each next one pyrDown) inside

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <opencv2/imgproc.hpp>
 #include <random>
 
 #include "detector/detector.h"
@@ -97,5 +98,54 @@ TEST(Acceptance, VerificationSeparatesTheTrueGeometryFromAWrongOne) {
   EXPECT_FALSE(verifyInstance(pyr, rect, cv::Mat(), cam, H, opt).ok);
   VerifyOptions bad;
   bad.compare_px = 2;
+  EXPECT_THROW(bad.check(), std::invalid_argument);
+}
+
+// A sibling product: another texture carrying a piece (8-14 % of the area) of the pattern, e.g.
+// a shared logo, somewhere else on it. The geometry a matcher finds there maps the reference's
+// piece onto the sibling's copy: it agrees on the piece only, and is refused; the pattern itself
+// at the same poses is accepted.
+TEST(Acceptance, VerificationRefusesASiblingSharingALogo) {
+  const Intrinsics cam = sceneCamera();
+  const VerifyOptions opt;
+  std::mt19937_64 rng(91);
+  const std::vector<std::string> patterns = {"targets/book_cover.png", "targets/cereal_box.png", "photos/butterfly_on_leaf.jpg"};
+  const std::vector<std::string> bases = {"boxes/box_side_a.png", "backgrounds/wall.png", "clutter/clutter_05.png"};
+  int refused = 0, accepted = 0, cases = 0;
+  for (int k = 0; k < 12; ++k) {
+    const cv::Mat tex = loadMedia(patterns[k % patterns.size()]);
+    cv::Mat sib;
+    cv::resize(loadMedia(bases[(k / 3) % bases.size()]), sib, tex.size(), 0, 0, cv::INTER_AREA);
+    const double frac = std::uniform_real_distribution<double>(0.08, 0.14)(rng);
+    const int w = static_cast<int>(std::sqrt(frac * tex.total())), h = static_cast<int>(frac * tex.total() / w);
+    std::uniform_int_distribution<int> ux(0, tex.cols - w), uy(0, tex.rows - h);
+    const cv::Rect src(ux(rng), uy(rng), w, h), dst(ux(rng), uy(rng), w, h);
+    tex(src).copyTo(sib(dst));
+    const double height = 0.2 * tex.rows / tex.cols;
+    SceneSpec spec;
+    spec.cMo = randomVisiblePose(rng, cam, 0.2, height, 0.4, 1.0, 40 * kDeg);
+    spec.seed = 600 + k;
+    const RenderedScene real = renderTarget(cam, tex, 0.2, height, spec), fake = renderTarget(cam, sib, 0.2, height, spec);
+    const std::vector<Eigen::Vector2d> rect = {{-0.5, -0.5}, {tex.cols - 0.5, -0.5}, {tex.cols - 0.5, tex.rows - 0.5},
+                                               {-0.5, tex.rows - 0.5}};
+    const Eigen::Matrix3d H = fitHomographyLeastSquares(rect, {real.corners.begin(), real.corners.end()});
+    Eigen::Matrix3d piece = Eigen::Matrix3d::Identity();  // reference px of the piece -> sibling texture px
+    piece(0, 2) = dst.x - src.x;
+    piece(1, 2) = dst.y - src.y;
+    const std::vector<cv::Mat> pyr = buildReferencePyramid(tex);
+    const VerifyResult v_real = verifyInstance(pyr, rect, real.image, cam, H, opt);
+    const VerifyResult v_fake = verifyInstance(pyr, rect, fake.image, cam, H * piece, opt);
+    ++cases;
+    accepted += v_real.ok;
+    refused += !v_fake.ok;
+    EXPECT_TRUE(v_real.ok) << k << ": " << v_real.correlation << ", " << v_real.strong_cells << " strong cells";
+    EXPECT_FALSE(v_fake.ok) << k << ": " << v_fake.correlation << ", " << v_fake.strong_cells << " strong cells";
+  }
+  std::printf("siblings refused %d/%d, true patterns accepted %d/%d\n", refused, cases, accepted, cases);
+  VerifyOptions bad;
+  bad.min_strong_cells = 10;
+  EXPECT_THROW(bad.check(), std::invalid_argument);
+  bad = VerifyOptions();
+  bad.strong_correlation = NAN;
   EXPECT_THROW(bad.check(), std::invalid_argument);
 }
