@@ -37,6 +37,7 @@ cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=RelWithDebInfo \
   -DCMAKE_C_FLAGS="-fsanitize=fuzzer-no-link $SAN" -DCMAKE_CXX_FLAGS="-fsanitize=fuzzer-no-link $SAN" \
   -DCMAKE_EXE_LINKER_FLAGS="$SAN" \
   -DREFGRASP_FUZZ=ON -DREFGRASP_BUILD_TESTS=OFF -DREFGRASP_BUILD_BENCH=OFF > "$BUILD.configure.log"
+mv "$BUILD.configure.log" "$BUILD/configure.log"  # not left in the source tree
 cmake --build "$BUILD" -j "$JOBS" --target $(printf 'fuzz_%s ' "${TARGETS[@]}")
 
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:allocator_may_return_null=1}
