@@ -23,6 +23,11 @@ void DenseRefineOptions::check() const {
   refgrasp::check(gauss_filter_size >= 1 && gauss_filter_size % 2 == 1, w + ".gauss_filter_size",
                   "must be odd and >= 1");
   refgrasp::check(pose_grid >= 2, w + ".pose_grid", "must be >= 2");
+  refgrasp::check(robust_block_px >= 2, w + ".robust_block_px", "must be >= 2");
+  refgrasp::check(std::isfinite(robust_min_residual) && robust_min_residual > 0, w + ".robust_min_residual",
+                  "must be finite and > 0");
+  refgrasp::check(std::isfinite(robust_min_kept) && robust_min_kept > 0 && robust_min_kept <= 1,
+                  w + ".robust_min_kept", "must be in (0, 1]");
 }
 
 std::vector<cv::Mat> buildReferencePyramid(const cv::Mat& gray, int min_side_px) {
@@ -38,6 +43,66 @@ std::vector<cv::Mat> buildReferencePyramid(const cv::Mat& gray, int min_side_px)
   }
   return pyr;
 }
+
+namespace {
+
+/// Template pixels to keep (255) after a converged ECC warp: blocks whose residual between the
+/// normalised template and the normalised warped scene is small; blocks off the scene crop,
+/// blocks an occluder covers (large residual) and their neighbours are 0. `seen`: the fraction
+/// of the template's blocks in the scene and not occluded (before leaving the neighbours out).
+cv::Mat occlusionMask(const cv::Mat& templ, const cv::Mat& scene, const cv::Mat& warp,
+                      const DenseRefineOptions& opt, double* seen) {
+  *seen = 0;
+  cv::Mat warped, inside;
+  cv::warpPerspective(scene, warped, warp, templ.size(), cv::INTER_LINEAR + cv::WARP_INVERSE_MAP);
+  cv::warpPerspective(cv::Mat(scene.size(), CV_8UC1, cv::Scalar(255)), inside, warp, templ.size(),
+                      cv::INTER_NEAREST + cv::WARP_INVERSE_MAP);
+  cv::Mat t, w;
+  templ.convertTo(t, CV_32F);
+  warped.convertTo(w, CV_32F);
+  cv::Scalar tm, ts, wm, ws;
+  cv::meanStdDev(t, tm, ts, inside);
+  cv::meanStdDev(w, wm, ws, inside);
+  if (!(ts[0] > 1e-6 && ws[0] > 1e-6)) {
+    *seen = cv::countNonZero(inside) / static_cast<double>(inside.total());
+    return inside;
+  }
+  cv::Mat r = cv::abs((t - tm[0]) / ts[0] - (w - wm[0]) / ws[0]);
+  const int b = opt.robust_block_px;
+  const int bx = (templ.cols + b - 1) / b, by = (templ.rows + b - 1) / b;
+  std::vector<double> block(static_cast<size_t>(bx * by), -1);
+  std::vector<double> valid;
+  for (int j = 0; j < by; ++j)
+    for (int i = 0; i < bx; ++i) {
+      const cv::Rect rc = cv::Rect(i * b, j * b, b, b) & cv::Rect(0, 0, templ.cols, templ.rows);
+      if (cv::countNonZero(inside(rc)) < rc.area()) continue;  // partly off the scene
+      block[static_cast<size_t>(j * bx + i)] = cv::mean(r(rc))[0];
+      valid.push_back(block[static_cast<size_t>(j * bx + i)]);
+    }
+  if (valid.empty()) return cv::Mat::zeros(templ.size(), CV_8UC1);
+  std::nth_element(valid.begin(), valid.begin() + static_cast<long>(valid.size() / 2), valid.end());
+  const double limit = std::max(opt.robust_min_residual, 3 * valid[valid.size() / 2]);
+  *seen = std::count_if(valid.begin(), valid.end(), [&](double v) { return v <= limit; }) /
+          static_cast<double>(block.size());
+  cv::Mat mask = cv::Mat::zeros(templ.size(), CV_8UC1);
+  // A block next to an occluded one is left out too: partly covered, its mean residual can pass.
+  const auto occluded = [&](int i, int j) {
+    return i >= 0 && j >= 0 && i < bx && j < by && block[static_cast<size_t>(j * bx + i)] > limit;
+  };
+  for (int j = 0; j < by; ++j)
+    for (int i = 0; i < bx; ++i) {
+      const double v = block[static_cast<size_t>(j * bx + i)];
+      if (v < 0 || v > limit) continue;
+      bool near = false;
+      for (int dj = -1; dj <= 1; ++dj)
+        for (int di = -1; di <= 1; ++di) near = near || occluded(i + di, j + dj);
+      if (near) continue;
+      mask(cv::Rect(i * b, j * b, b, b) & cv::Rect(0, 0, templ.cols, templ.rows)).setTo(255);
+    }
+  return mask;
+}
+
+}  // namespace
 
 DenseRefineResult refineHomographyDense(const std::vector<cv::Mat>& ref_pyramid,
                                         const cv::Mat& scene, const Eigen::Matrix3d& H,
@@ -122,12 +187,28 @@ DenseRefineResult refineHomographyDense(const std::vector<cv::Mat>& ref_pyramid,
     cv::erode(mask, mask, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * inset + 1, 2 * inset + 1)));
     if (cv::countNonZero(mask) < 64) return res;
   }
+  const cv::TermCriteria stop(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, opt.max_iterations,
+                              opt.epsilon);
   try {
     res.correlation = cv::findTransformECC(
-        ref_pyramid[L](trect), scene(crect), warp, cv::MOTION_HOMOGRAPHY,
-        cv::TermCriteria(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, opt.max_iterations,
-                         opt.epsilon),
+        ref_pyramid[L](trect), scene(crect), warp, cv::MOTION_HOMOGRAPHY, stop,
         mask_polygon ? cv::_InputArray(mask) : cv::_InputArray(cv::noArray()), opt.gauss_filter_size);
+    // Robust: leave the occluded blocks out and align again, twice (the first warp was pulled
+    // towards the occluder, so its residuals mark the occlusion only roughly).
+    for (int round = 0; opt.robust && round < 2; ++round) {
+      double seen = 0;
+      cv::Mat kept = occlusionMask(ref_pyramid[L](trect), scene(crect), warp, opt, &seen);
+      res.masked_fraction = 1 - seen;
+      if (seen < opt.robust_min_kept) return res;
+      if (seen >= 0.98) break;
+      if (mask_polygon) cv::bitwise_and(kept, mask, kept);
+      // ECC's mask lives in the scene (input) image: the kept template moved there.
+      cv::Mat scene_mask;
+      cv::warpPerspective(kept, scene_mask, warp, crect.size(), cv::INTER_NEAREST);
+      res.correlation = cv::findTransformECC(ref_pyramid[L](trect), scene(crect), warp,
+                                             cv::MOTION_HOMOGRAPHY, stop, scene_mask,
+                                             opt.gauss_filter_size);
+    }
   } catch (const cv::Exception&) {
     return res;
   }

@@ -24,6 +24,15 @@ struct DenseRefineOptions {
   double min_correlation = 0.5;      ///< reject below this final ECC correlation coefficient
   int gauss_filter_size = 1;         ///< ECC pre-smoothing kernel (odd, >= 1)
   int pose_grid = 8;                 ///< pose from a pose_grid x pose_grid grid mapped by the H
+  /// Robust to occluders: after ECC converges, template blocks of robust_block_px whose residual
+  /// (normalised intensities) exceeds max(robust_min_residual, 3 x the median block's), and
+  /// their neighbours (partly covered), are left out and ECC runs again from there (twice);
+  /// refused when less than robust_min_kept of the template is left. Off in detection (the
+  /// detector's results stay as they are); the tracker's alignment turns it on.
+  bool robust = false;
+  int robust_block_px = 8;
+  double robust_min_residual = 0.5;
+  double robust_min_kept = 0.3;
   /// Throws std::invalid_argument "DenseRefineOptions.<field>: <problem>".
   void check() const;
 };
@@ -38,6 +47,9 @@ struct DenseRefineResult {
   int level = -1;                ///< pyramid level used
   double correlation = 0;        ///< final ECC coefficient
   double corner_shift_px = 0;    ///< largest corner displacement refined vs input H
+  /// robust: fraction of the template found off the image or occluded (the fit leaves a band
+  /// of blocks around the occluded ones out as well)
+  double masked_fraction = 0;
 };
 
 /// Refines H (reference px -> scene px) over the axis-aligned pattern rectangle `pattern_rect`

@@ -572,6 +572,7 @@ PoseAlignment Detector::alignPose(const cv::Mat& image, const Intrinsics& camera
     const DenseRefineResult dr = refineDense(e, H, gray, camera, dense ? *dense : opt_.dense);
     out.correlation = dr.correlation;
     out.corner_shift_px = dr.corner_shift_px;
+    out.used_fraction = 1 - dr.masked_fraction;
     if (!dr.ok) return out;
     const PoseResult p = poseFromDenseH(e, opt_, dr.H, camera);
     if (!p.ok || !p.cMo.isFinite()) return out;

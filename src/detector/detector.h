@@ -168,6 +168,9 @@ struct PoseAlignment {
   Pose cMo;                    ///< aligned object frame in the camera frame (metres, radians)
   double correlation = 0;      ///< final ECC correlation coefficient
   double corner_shift_px = 0;  ///< largest pattern corner move, aligned vs given pose
+  /// Fraction of the reference the alignment used (dense.robust: the rest was off the image or
+  /// occluded; 1 otherwise).
+  double used_fraction = 1;
 };
 
 class Detector {

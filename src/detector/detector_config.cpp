@@ -52,6 +52,10 @@ void visitFields(O& o, Visit&& v) {
   v("dense.min_correlation", o.dense.min_correlation);
   v("dense.gauss_filter_size", o.dense.gauss_filter_size);
   v("dense.pose_grid", o.dense.pose_grid);
+  v("dense.robust", o.dense.robust);
+  v("dense.robust_block_px", o.dense.robust_block_px);
+  v("dense.robust_min_residual", o.dense.robust_min_residual);
+  v("dense.robust_min_kept", o.dense.robust_min_kept);
   v("sanity.min_distance_m", o.sanity.min_distance_m);
   v("sanity.max_distance_m", o.sanity.max_distance_m);
   v("sanity.min_area_px2", o.sanity.min_area_px2);

@@ -440,6 +440,8 @@ namespace {
 
 std::string sizeProblem(const cv::Mat& image, const Intrinsics& cam, const char* eye) {
   if (image.empty()) return std::string(eye) + "empty image";
+  if (image.depth() != CV_8U || (image.channels() != 1 && image.channels() != 3 && image.channels() != 4))
+    return std::string(eye) + "unsupported pixel type (expected 8-bit gray, BGR or BGRA)";
   if (image.cols == cam.width && image.rows == cam.height) return "";
   return std::string(eye) + "image is " + std::to_string(image.cols) + "x" +
          std::to_string(image.rows) + ", the camera calibration is " + std::to_string(cam.width) +

@@ -43,6 +43,12 @@ void TrackerOptions::check() const {
   need(std::isfinite(reseed_fraction) && reseed_fraction >= 0 && reseed_fraction <= 1,
        "reseed_fraction", "must be in [0, 1]");
   need(pose_iterations >= 1 && pose_iterations <= 100, "pose_iterations", "must be 1..100");
+  need(max_unaligned_frames >= 1, "max_unaligned_frames", "must be >= 1");
+  need(std::isfinite(klt_max_error) && klt_max_error > 0, "klt_max_error", "must be > 0");
+  need(std::isfinite(min_aligned_fraction) && min_aligned_fraction >= 0 && min_aligned_fraction <= 1,
+       "min_aligned_fraction", "must be in [0, 1]");
+  need(std::isfinite(align_max_feature_rms_px) && align_max_feature_rms_px > 0,
+       "align_max_feature_rms_px", "must be > 0");
   need(std::isfinite(align_max_corner_shift_px) && align_max_corner_shift_px > 0,
        "align_max_corner_shift_px", "must be > 0");
   need(std::isfinite(align_min_correlation) && align_min_correlation >= -1 && align_min_correlation < 1,
@@ -144,6 +150,7 @@ class KltPlanarTracker : public FrameTracker {
         return s;
       }
       s.ok = running_ = true;
+      unaligned_ = 0;
       cMo_ = cMo;
       return s;
     } catch (const std::exception& e) {
@@ -239,6 +246,18 @@ class KltPlanarTracker : public FrameTracker {
                              cv::OPTFLOW_USE_INITIAL_FLOW);
     std::vector<Eigen::Vector3d> X;
     std::vector<Eigen::Vector2d> y;
+    // A window whose content changed (an occluder's edge dragging the feature, a glint) leaves a
+    // large photometric error: those features are dropped.
+    std::vector<float> e;
+    for (size_t i = 0; i < status.size(); ++i)
+      if (status[i]) e.push_back(err[i]);
+    float max_err = static_cast<float>(opt_.klt_max_error);
+    if (!e.empty()) {
+      std::nth_element(e.begin(), e.begin() + static_cast<long>(e.size() / 2), e.end());
+      max_err = std::max(max_err, 3 * e[e.size() / 2]);
+    }
+    for (size_t i = 0; i < status.size(); ++i)
+      if (status[i] && err[i] > max_err) status[i] = 0;
     for (size_t i = 0; i < status.size(); ++i)
       if (status[i]) {
         m.feature.push_back(i);
@@ -300,14 +319,24 @@ class KltPlanarTracker : public FrameTracker {
     const Eigen::Matrix3d K = cam.K();
     const std::vector<Eigen::Vector3d>& Xi = m.Xi;
     const std::vector<Eigen::Vector2d>& yi = m.yi;
-    // Photometric alignment with the reference: the pose the features give no longer drifts.
+    // Photometric alignment with the reference: the pose the features give no longer drifts. An
+    // alignment the features disagree with (an occluder pulled it) is refused.
     if (align_) {
       const detector::PoseAlignment a = align_(gray, cam, pr.cMo);
       s.quality.correlation = a.correlation;
-      if (a.ok) {
+      s.quality.aligned_fraction = a.used_fraction;
+      bool ok = a.ok;
+      if (ok) {
+        double sq_a = 0;
+        for (size_t i = 0; i < Xi.size(); ++i)
+          sq_a += (detector::projectPinhole(K, a.cMo * Xi[i]) - yi[i]).squaredNorm();
+        ok = std::sqrt(sq_a / static_cast<double>(Xi.size())) <= opt_.align_max_feature_rms_px;
+      }
+      if (ok) {
         pr.cMo = a.cMo;
         s.quality.aligned = true;
       }
+      unaligned_ = ok ? 0 : unaligned_ + 1;
     }
     double sq = 0;
     for (size_t i = 0; i < Xi.size(); ++i)
@@ -343,6 +372,12 @@ class KltPlanarTracker : public FrameTracker {
     } else if (s.quality.visible_fraction < opt_.min_visible_fraction) {
       s.lost_reason = lostLine("pattern out of view", s.quality.visible_fraction, "<",
                                opt_.min_visible_fraction);
+    } else if (s.quality.aligned && s.quality.aligned_fraction < opt_.min_aligned_fraction) {
+      s.lost_reason = lostLine("too little of the pattern in view and unoccluded",
+                               s.quality.aligned_fraction, "<", opt_.min_aligned_fraction);
+    } else if (unaligned_ >= opt_.max_unaligned_frames) {
+      s.lost_reason = lostLine("frames not aligned with the reference", unaligned_, ">=",
+                               opt_.max_unaligned_frames);
     } else {
       s.ok = true;
     }
@@ -377,6 +412,7 @@ class KltPlanarTracker : public FrameTracker {
   std::vector<Eigen::Vector3d> X_o_;   ///< their points on the pattern plane, object frame
   long next_id_ = 0;
   int started_ = 0;
+  int unaligned_ = 0;  ///< frames in a row the aligner refused
   bool running_ = false;
   Pose cMo_;
 };
@@ -407,6 +443,7 @@ TrackerFactory planarTrackerFactory(const TrackerOptions& options, const detecto
           detector::DenseRefineOptions dense = detector->options().dense;
           dense.max_corner_shift_px = options.align_max_corner_shift_px;
           dense.min_correlation = options.align_min_correlation;
+          dense.robust = true;
           align = [detector, id, dense](const cv::Mat& gray, const Intrinsics& cam, const Pose& cMo) {
             return detector->alignPose(gray, cam, id, cMo, &dense);
           };

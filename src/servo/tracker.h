@@ -16,9 +16,12 @@
 //   kMbt  ViSP's vpMbGenericTracker (KLT, optionally + moving edges on the pattern outline) on a
 //         one-face model built from the pattern polygon, initialised with initFromPose.
 //
-// Quality per frame: surviving features and their RMS projection error, and the fraction of the
-// pattern projected inside the image. The tracker reports "lost" when one of them falls past its
-// threshold (TrackerOptions) or the pose is not finite/in front of the camera.
+// Quality per frame: surviving features and their RMS projection error, the fraction of the
+// pattern projected inside the image and, with the aligner, the fraction of the reference it
+// found in view and unoccluded (robust ECC: occluded blocks left out). The tracker reports "lost"
+// when one of them falls past its threshold (TrackerOptions), when the aligner refuses
+// max_unaligned_frames frames in a row (features that slid onto an occluder's edge can agree on
+// a wrong pose; the reference does not), or the pose is not finite/in front of the camera.
 //
 // Frames and units: cMo = object frame in the camera frame of the image tracked (metres,
 // radians); images 8-bit gray of the camera's size; pixels with the centre of the top-left pixel
@@ -44,6 +47,8 @@ struct TrackQuality {
   double visible_fraction = 0;     ///< fraction of the pattern's area projected inside the image
   bool aligned = false;            ///< the pose was aligned with the reference this step
   double correlation = 0;          ///< the alignment's ECC correlation coefficient (when tried)
+  /// Fraction of the reference the alignment used (the rest off the image or occluded).
+  double aligned_fraction = 0;
 };
 
 /// The outcome of start() or track().
@@ -98,6 +103,9 @@ struct TrackerOptions {
   int klt_retry_pyramid_levels = 4;
   double pattern_border_px = 6;         ///< features this far inside the projected outline only
   double inlier_threshold_px = 2.5;     ///< features with a larger residual are dropped
+  /// Features whose KLT error (mean absolute gray difference of the window) exceeds
+  /// max(this, 3 x the median feature's) are dropped: an occluder's edge dragged them.
+  double klt_max_error = 8;
   /// Re-seed features in the visible pattern when fewer than this x max_features are left.
   double reseed_fraction = 0.5;
   int pose_iterations = 10;             ///< robust LM iterations per frame
@@ -107,6 +115,14 @@ struct TrackerOptions {
   /// far for a small rotation of a partly visible pattern) or the correlation ends lower.
   double align_max_corner_shift_px = 20;
   double align_min_correlation = 0.8;
+  /// ... or when the surviving features' RMS reprojection error under the aligned pose is larger.
+  double align_max_feature_rms_px = 1.0;
+  /// With an aligner: lost after this many frames in a row that could not be aligned (features
+  /// that slid onto an occluder's edge can agree on a wrong pose; the reference does not).
+  int max_unaligned_frames = 1;
+  /// Lost when the alignment used less of the reference (a partial view leaves the rotation
+  /// poorly determined: at half the pattern hidden, several degrees).
+  double min_aligned_fraction = 0.6;
   /// Throws std::invalid_argument "TrackerOptions.<field>: <problem>".
   void check() const;
 };

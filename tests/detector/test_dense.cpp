@@ -45,6 +45,13 @@ double cornerError(const Eigen::Matrix3d& H, const std::array<Eigen::Vector2d, 4
   return e;
 }
 
+/// The corners, each pushed by up to 1.5 px (a start for the refinement).
+std::array<Eigen::Vector2d, 4> pushed(std::array<Eigen::Vector2d, 4> corners) {
+  const double d[4][2] = {{1.5, -1.0}, {-1.2, 0.8}, {0.7, 1.4}, {-1.0, -1.3}};
+  for (int i = 0; i < 4; ++i) corners[i] += Eigen::Vector2d(d[i][0], d[i][1]);
+  return corners;
+}
+
 }  // namespace
 
 TEST(DenseRefine, RecoversPerturbedHomography) {
@@ -73,10 +80,7 @@ TEST(DenseRefine, RecoversPerturbedHomography) {
     const RenderedScene s = renderTarget(cam, tex, kWidth, h, spec);
     const Eigen::Matrix3d H_true = homographyFrom(rect, s.corners);
     // Start: every corner pushed by up to 1.5 px.
-    std::array<Eigen::Vector2d, 4> pushed = s.corners;
-    const double d[4][2] = {{1.5, -1.0}, {-1.2, 0.8}, {0.7, 1.4}, {-1.0, -1.3}};
-    for (int i = 0; i < 4; ++i) pushed[i] += Eigen::Vector2d(d[i][0], d[i][1]);
-    const Eigen::Matrix3d H0 = homographyFrom(rect, pushed);
+    const Eigen::Matrix3d H0 = homographyFrom(rect, pushed(s.corners));
     const DenseRefineResult r = refineHomographyDense(pyr, s.image, H0, rect, opt);
     ASSERT_TRUE(r.ok) << "case " << k;
     const double e0 = cornerError(H0, rect, s.corners), e1 = cornerError(r.H, rect, s.corners);
@@ -90,6 +94,56 @@ TEST(DenseRefine, RecoversPerturbedHomography) {
     // Level 2 (100x75): the far target is ~93 px wide; the near ones by the 16384 px budget.
     EXPECT_EQ(r.level, 2) << "case " << k;
   }
+}
+
+// dense.robust (the tracker's alignment): a panel over part of the pattern is left out of the
+// fit, the rest aligns as well as an unoccluded view; too little left is refused.
+TEST(DenseRefine, RobustLeavesAnOccluderOut) {
+  const cv::Mat tex = loadMedia("targets/poster_concert.png");
+  const cv::Mat panel = loadMedia("clutter/clutter_03.png");
+  const Intrinsics cam = sceneCamera();
+  const std::vector<cv::Mat> pyr = buildReferencePyramid(tex);
+  const auto rect = textureRect(tex);
+  SceneSpec spec;
+  spec.cMo = Pose::fromRotationVector({0.15, -0.1, 0.05}, {0.0, 0.0, 0.6});
+  spec.seed = 11;
+  const RenderedScene s = renderTarget(cam, tex, kWidth, kWidth * tex.rows / tex.cols, spec);
+  const Eigen::Matrix3d H0 = homographyFrom(rect, pushed(s.corners));
+  std::vector<cv::Point> outline;
+  for (const auto& c : s.corners) outline.emplace_back(cvRound(c.x()), cvRound(c.y()));
+  const cv::Rect box = cv::boundingRect(outline);
+  // The panel covers the left `fraction` of the pattern's bounding box.
+  const auto occluded = [&](double fraction) {
+    cv::Mat img = s.image.clone();
+    const cv::Rect r(box.x, box.y, static_cast<int>(fraction * box.width), box.height);
+    cv::Mat p;
+    cv::resize(panel, p, r.size());
+    p.copyTo(img(r));
+    return img;
+  };
+  DenseRefineOptions plain, robust;
+  robust.robust = true;
+  plain.max_corner_shift_px = robust.max_corner_shift_px = 20;  // as the tracker's alignment
+  const cv::Mat third = occluded(0.35);
+  const DenseRefineResult a = refineHomographyDense(pyr, third, H0, rect, plain);
+  const DenseRefineResult b = refineHomographyDense(pyr, third, H0, rect, robust);
+  const double ea = a.ok ? cornerError(a.H, rect, s.corners) : NAN;
+  ASSERT_TRUE(b.ok) << "corr " << b.correlation << " shift " << b.corner_shift_px;
+  const double eb = cornerError(b.H, rect, s.corners);
+  std::printf("35 %% occluded: plain %s (corr %.3f, corner error %.3f px), robust corr %.3f, corner "
+              "error %.3f px, masked %.2f\n", a.ok ? "ok" : "refused", a.correlation, ea, b.correlation, eb,
+              b.masked_fraction);
+  EXPECT_LT(eb, 0.2);
+  EXPECT_LT(eb, ea);
+  EXPECT_GT(b.masked_fraction, 0.25);  // 35 % of the bounding box, less of the tilted pattern
+  EXPECT_LT(b.masked_fraction, 0.45);
+  // Unoccluded: nothing left out.
+  const DenseRefineResult c = refineHomographyDense(pyr, s.image, H0, rect, robust);
+  ASSERT_TRUE(c.ok);
+  EXPECT_LT(c.masked_fraction, 0.05);
+  EXPECT_LT(cornerError(c.H, rect, s.corners), 0.1);
+  // 85 % hidden: less than robust_min_kept left.
+  EXPECT_FALSE(refineHomographyDense(pyr, occluded(0.85), H0, rect, robust).ok);
 }
 
 TEST(DenseRefine, RefusesBadStartsAndInputs) {
@@ -140,6 +194,9 @@ TEST(DenseRefine, OptionsCheck) {
   bad([](DenseRefineOptions& o) { o.min_correlation = 1.5; });
   bad([](DenseRefineOptions& o) { o.gauss_filter_size = 4; });
   bad([](DenseRefineOptions& o) { o.pose_grid = 1; });
+  bad([](DenseRefineOptions& o) { o.robust_block_px = 1; });
+  bad([](DenseRefineOptions& o) { o.robust_min_residual = 0; });
+  bad([](DenseRefineOptions& o) { o.robust_min_kept = 1.5; });
   try {
     DenseRefineOptions o;
     o.gauss_filter_size = 2;

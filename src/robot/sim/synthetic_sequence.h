@@ -12,6 +12,7 @@
 #include "core/camera.h"
 #include "core/pose.h"
 #include "robot/camera.h"
+#include "robot/sim/render.h"
 
 namespace refgrasp::testing {
 
@@ -27,6 +28,7 @@ struct ViewPoint {
 
 struct TrackingSequenceSpec {
   int frames = 90;
+  int render_frames = -1;  ///< render only the first N of the frames (-1: all; tests save time)
   double fps = 30;
   std::string texture = "targets/cereal_box.png";  ///< media path (testing::loadMedia)
   double width_m = 0.25;                            ///< height from the texture's aspect
@@ -34,6 +36,11 @@ struct TrackingSequenceSpec {
   double wall_behind_m = 0.8;                       ///< wall plane this far behind the target
   /// The camera's placement over time, t in [0, 1] (first frame 0, last frame 1).
   std::function<ViewPoint(double t)> path;
+  /// Panels fixed in the world between the camera and the target (each plane's cMp holds its
+  /// pose in the object frame, oMp), e.g. an occluder the target passes behind.
+  std::vector<sim::TexturedPlane> occluders;
+  /// Whether the target is in frame k (empty: always); without it only the wall and occluders.
+  std::function<bool(int frame)> target_shown;
   double noise_sigma = 2.0;         ///< gray levels, new in every frame
   double exposure_fraction = 0.3;   ///< motion blur = this x the target centre's image motion
   bool capture_state = false;       ///< fill CaptureState::bMc (camera in the world/base frame)
@@ -46,6 +53,8 @@ ViewPoint orbitPath(double t);
 
 /// Camera in the object frame for a view point (oMc: camera frame in the object frame).
 Pose viewPointPose(const ViewPoint& v);
+/// A camera at (x_m, y_m, -distance_m) in the object frame looking along +z (a sideways move).
+ViewPoint sidewaysView(double x_m, double y_m, double distance_m);
 
 struct TrackingSequence {
   Intrinsics camera;          ///< sceneCamera() (both eyes with a rig)
@@ -53,6 +62,7 @@ struct TrackingSequence {
   std::vector<robot::MonoFrame> mono;      ///< left eye (mono sequences)
   std::vector<robot::StereoFrame> stereo;  ///< with renderTrackingSequence(.., stereo = true)
   std::vector<Pose> truth;    ///< cMo per frame (left eye)
+  std::vector<double> visible;  ///< fraction of the target's area in the image and not occluded
 };
 
 /// Renders the sequence (mono, or stereo with both eyes).
