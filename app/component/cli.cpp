@@ -13,6 +13,7 @@
 #include "core/error.h"
 #include "detector/detector.h"
 #include "detector/detector_config.h"
+#include "servo/target_tracker.h"
 #include "robot/dds/transport.h"
 #include "tool/tool.h"
 
@@ -31,6 +32,9 @@ Topics (ROS names; on DDS "rt" + name):
   srv  <ns>/detect       refgrasp_msgs/srv/Detect {object_name, timeout_s} -> {found, rotation,
                          translation, error}; timeout_s 0: the latest result, > 0: the next frame's
 The detector works on the newest frame; frames arriving meanwhile are dropped (counted).
+--track: the robot's pipeline instead (servo::TargetTracker): a detection is published once the
+next one confirms it, then the target is tracked frame to frame (a few ms) and re-detected only
+when the tracker loses it, so poses come out at the camera's rate.
 Bad frames give one warning (rate-limited) on stderr and found = false; serving goes on.
 Detector options: --detector-config FILE (config/detector.yaml lists every field).
 Stops on SIGINT/SIGTERM and prints {"frames_received",...} as one JSON line on stdout.
@@ -60,6 +64,10 @@ int runVisionComponent(int argc, char** argv) {
                  "right_in_left; intrinsics come from camera_info)");
   app.add_option("--detector-config", detector_config,
                  "detector options YAML (every field: config/detector.yaml); default: built-in");
+  bool track = false;
+  app.add_flag("--track", track,
+               "the robot's pipeline: a detection confirmed by the next one, then tracked between "
+               "detections, so poses come out at the camera's rate");
   tool::parse(app, argc, argv);
   if (const std::string p = dds::domainOrNamespaceProblem(domain, ns); !p.empty()) {
     std::fprintf(stderr, "vision_component: %s\n", p.c_str());
@@ -68,6 +76,7 @@ int runVisionComponent(int argc, char** argv) {
   VisionComponentOptions opt;
   opt.domain = domain;
   opt.ns = ns;
+  opt.track = track;
   detector::Detector det;
   try {
     if (!detector_config.empty()) det = detector::Detector(detector::loadDetectorOptions(detector_config));
@@ -93,15 +102,16 @@ int runVisionComponent(int argc, char** argv) {
     std::fprintf(stderr, "vision_component: %s\n", e.what());
     return 3;
   }
-  std::fprintf(stderr, "vision_component: serving %s on DDS domain %d (%zu object%s, %s)\n",
+  std::fprintf(stderr, "vision_component: serving %s on DDS domain %d (%zu object%s, %s%s)\n",
                dds::joinRosName(ns, "detect").c_str(), domain, object_files.size(),
-               object_files.size() == 1 ? "" : "s", opt.stereo ? "stereo" : "mono");
+               object_files.size() == 1 ? "" : "s", opt.stereo ? "stereo" : "mono", track ? ", tracking" : "");
   while (!g_stop) std::this_thread::sleep_for(std::chrono::milliseconds(20));
   c->stop();
   const ComponentStats s = c->stats();
   nlohmann::ordered_json j;
   j["frames_received"] = s.received;
   j["frames_processed"] = s.processed;
+  if (track) j["frames_tracked"] = s.tracked;
   j["frames_dropped"] = s.dropped;
   j["frames_rejected"] = s.rejected;
   j["frames_unpaired"] = s.unpaired;

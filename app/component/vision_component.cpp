@@ -24,6 +24,7 @@ using dds::Sample;
 
 void VisionComponentOptions::check() const {
   dds::checkDomainAndNamespace(domain, ns, "VisionComponentOptions");
+  if (track) tracking.check();
   refgrasp::check(std::isfinite(warning_period_s) && warning_period_s >= 0,
                   "VisionComponentOptions.warning_period_s", "must be >= 0");
 }
@@ -92,6 +93,7 @@ struct VisionComponent::Impl {
       names.push_back(det.object(i).name);
     }
     if (names.empty()) throw std::invalid_argument("the component needs at least one object");
+    if (o.track) pipeline = std::make_unique<servo::TargetTracker>(det, o.tracking);
     results.resize(names.size());
     const bool stereo = o.stereo.has_value();
     eyes.resize(stereo ? 2 : 1);
@@ -380,7 +382,22 @@ struct VisionComponent::Impl {
 
     std::string problem = checkFrame(job, gray, cam);
     const double t0 = steadyNow();
-    if (problem.empty()) {
+    bool tracked_only = false;
+    if (problem.empty() && pipeline) {
+      // --track: the robot's pipeline (detect, confirm, track, re-detect).
+      const servo::TargetFrame tf = trackFrame(job, gray, cam);
+      if (!tf.ok) problem = eyes[0].image_topic + ": " + tf.error;
+      tracked_only = tf.ok && tf.detector_calls == 0;
+      for (const servo::TargetState& s : tf.objects) {
+        if (!s.cMo || !s.confirmed) continue;  // an unconfirmed pose is not published
+        found.emplace_back(s.object, *s.cMo);
+        Result& o = res[static_cast<size_t>(s.object)];
+        o.found = true;
+        o.cMo = *s.cMo;
+        inliers[static_cast<size_t>(s.object)] =
+            s.mode == servo::TrackMode::kDetect ? s.detection.inliers : s.quality.features + s.quality_right.features;
+      }
+    } else if (problem.empty()) {
       // The one place the detector runs.
       if (eyes.size() == 1) {
         const detector::DetectionResult r = det.detect(gray[0].gray, cam[0], frameStamp(job));
@@ -412,6 +429,8 @@ struct VisionComponent::Impl {
     }
     const double t1 = steadyNow();
     if (!problem.empty()) {
+      // The trackers do not carry a pose across a frame they did not see.
+      if (pipeline) pipeline->failed(frameStamp(job), problem);
       found.clear();
       for (auto& r : res) {
         r.found = false;
@@ -429,6 +448,7 @@ struct VisionComponent::Impl {
       std::lock_guard<std::mutex> lock(stats_mu);
       if (problem.empty()) {
         ++st.processed;
+        st.tracked += tracked_only;
         const double queue = taken_at - job.queued_at;
         detect_ms.push_back((t1 - t0) * 1e3);
         queue_ms.push_back(queue * 1e3);
@@ -443,6 +463,24 @@ struct VisionComponent::Impl {
       }
     }
     record(job.seq, res);
+  }
+
+  /// The frame through the pipeline (--track); stamps and counter as the detector gets them.
+  servo::TargetFrame trackFrame(const Job& job, const dds::GrayImage* gray, const Intrinsics* cam) {
+    const FrameStamp fs = frameStamp(job);
+    if (eyes.size() == 1) {
+      robot::MonoFrame f;
+      f.image = gray[0].gray;
+      f.stamp = fs.stamp;
+      f.index = fs.index;
+      return pipeline->process(f, cam[0]);
+    }
+    robot::StereoFrame f;
+    f.left = gray[0].gray;
+    f.right = gray[1].gray;
+    f.stamp = fs.stamp;
+    f.index = fs.index;
+    return pipeline->process(f, StereoRig{cam[0], cam[1], opt.stereo->lMr});
   }
 
   void publish(const msg::Header& image_header, const std::vector<Result>& res,
@@ -493,6 +531,7 @@ struct VisionComponent::Impl {
 
   detector::Detector det;
   VisionComponentOptions opt;
+  std::unique_ptr<servo::TargetTracker> pipeline;  ///< --track (uses det)
   RateLimitedLog log;
   std::vector<std::string> names;
 

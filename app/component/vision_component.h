@@ -15,6 +15,9 @@
 //
 // Throughput: the detector always works on the newest frame; frames that arrive while it works
 // replace each other and are dropped, never queued (ComponentStats::dropped counts them).
+// With `track`, every frame goes through the robot's pipeline (servo/target_tracker.h): a
+// detection confirmed by the next one, then the tracker between detections (a few ms a frame),
+// so poses come out at the camera's rate; only confirmed poses are published (found = true).
 // Bad input (unsupported encoding, data size != height x step, step < width x bytes per pixel,
 // no camera_info, camera_info of another size or frame) never stops it: one rate-limited
 // warning per kind, found = false for that frame on object_info and in the service, and it
@@ -28,6 +31,7 @@
 
 #include "core/camera.h"
 #include "detector/detector.h"
+#include "servo/target_tracker.h"
 
 namespace refgrasp::component {
 
@@ -38,6 +42,8 @@ struct VisionComponentOptions {
   /// camera_info, the right eye's pose in the left frame (lMr) from this rig.
   std::optional<StereoRig> stereo;
   double warning_period_s = 5.0;  ///< at most one warning per kind of problem per period
+  bool track = false;  ///< run the robot's detect-confirm-track pipeline instead of detection alone
+  servo::TargetTrackerOptions tracking;  ///< with track
   /// Throws std::invalid_argument "VisionComponentOptions.<field>: <problem>".
   void check() const;
 };
@@ -45,12 +51,13 @@ struct VisionComponentOptions {
 /// A snapshot of what the component did.
 struct ComponentStats {
   long received = 0;   ///< frames taken from DDS (stereo: pairs formed)
-  long processed = 0;  ///< frames the detector ran on
+  long processed = 0;  ///< frames the detector (with track: the pipeline) ran on
+  long tracked = 0;    ///< with track: processed frames that needed no detection (tracked only)
   long dropped = 0;    ///< frames a newer one replaced before the detector got to them
   long rejected = 0;   ///< frames that could not be used (bad input): found = false
   long unpaired = 0;   ///< stereo: images whose partner (same stamp) never came
   long requests = 0;   ///< detect calls received
-  double detect_ms_median = 0;    ///< the detector alone, per processed frame
+  double detect_ms_median = 0;    ///< the detector alone (with track: the pipeline), per processed frame
   /// Waiting for the detector to finish the previous frame (0 when frames come slower than it).
   double queue_ms_median = 0;
   /// The component's own work per frame: taking it from DDS, checks and conversion, writing the

@@ -10,6 +10,7 @@
 #include "component/vision_component.h"
 #include "component_test_util.h"
 #include "robot/dds/dds_test_util.h"
+#include "robot/sim/synthetic_sequence.h"
 
 using namespace refgrasp;
 using namespace refgrasp::testing;
@@ -36,7 +37,7 @@ class Component : public ::testing::Test {
   /// A component on this test's domain; warnings are collected in warnings().
   std::unique_ptr<VisionComponent> start(std::vector<detector::ObjectModel> objects,
                                          std::optional<StereoRig> rig = std::nullopt,
-                                         double warning_period_s = 5) {
+                                         double warning_period_s = 5, bool track = false) {
     detector::Detector det;
     for (const auto& o : objects) det.addObject(o);
     VisionComponentOptions o;
@@ -44,6 +45,7 @@ class Component : public ::testing::Test {
     o.ns = ns_;
     o.stereo = rig;
     o.warning_period_s = warning_period_s;
+    o.track = track;
     return std::make_unique<VisionComponent>(std::move(det), o, [this](const std::string& w) {
       std::lock_guard<std::mutex> l(mu_);
       warnings_.push_back(w);
@@ -109,6 +111,40 @@ TEST_F(Component, PosesOfRenderedFramesMatchGroundTruth) {
               "detector median %.1f ms, component overhead median %.2f ms\n",
               kFrames, elapsed, latency_ms[latency_ms.size() / 2], s.detect_ms_median, s.overhead_ms_median);
   EXPECT_GE(s.processed, kFrames);
+  EXPECT_EQ(s.rejected, 0);
+}
+
+// --track: the robot's pipeline in the component. The first detection is not published (not
+// confirmed yet), the next confirms it, then the frames are tracked (no detector run) and every
+// frame gets a pose within the detector's tolerances.
+TEST_F(Component, TrackingPublishesConfirmedPosesOnEveryFrame) {
+  TrackingSequenceSpec spec;
+  spec.frames = 24;
+  spec.texture = kTexture;
+  spec.width_m = kTargetWidth;
+  spec.path = [](double t) { return orbitPath(0.25 + 0.25 * t); };  // 1.1 -> 0.4 m, tilting
+  const TrackingSequence seq = renderTrackingSequence(spec);
+  auto c = start({target("cereal_box", kTexture)}, std::nullopt, 5, /*track=*/true);
+  dds::Participant pp(domain_);
+  CameraPublisher cam(pp, ns_);
+  InfoListener infos(pp, ns_);
+  ASSERT_TRUE(cam.waitForComponent(10));
+  std::string found;
+  for (size_t k = 0; k < seq.mono.size(); ++k) {
+    const Seconds stamp = 200.0 + 0.05 * static_cast<double>(k);
+    const auto r = publishUntilAnswered(cam, infos, seq.mono[k].image, stamp, "cereal_box");
+    ASSERT_TRUE(r.has_value()) << "frame " << k;
+    found += r->found ? '1' : '0';
+    if (!r->found) continue;
+    EXPECT_LT(rotationError(r->cMo, seq.truth[k]), 1 * kDeg) << "frame " << k;
+    EXPECT_LT(translationError(r->cMo, seq.truth[k]), 0.01 * seq.truth[k].t.norm()) << "frame " << k;
+    EXPECT_GT(r->inliers, 10) << "frame " << k;
+  }
+  const auto s = c->stats();
+  std::printf("--track: found %s; %ld frames processed, %ld tracked only; pipeline median %.2f ms\n",
+              found.c_str(), s.processed, s.tracked, s.detect_ms_median);
+  EXPECT_EQ(found, "0" + std::string(seq.mono.size() - 1, '1'));
+  EXPECT_GE(s.tracked, static_cast<long>(seq.mono.size()) - 4);
   EXPECT_EQ(s.rejected, 0);
 }
 

@@ -115,15 +115,19 @@ TEST_F(ComponentCli, DdsFailureIsExit3) {
 
 TEST_F(ComponentCli, SignalsStopItCleanly) {
   for (int sig : {SIGINT, SIGTERM}) {
-    // (with the shipped detector options, which must be accepted)
-    Subprocess p(args({"--object", kObject, "--detector-config", kSource + "/config/detector.yaml"}), dir_,
-                 "sig" + std::to_string(sig));
+    // (with the shipped detector options, which must be accepted; SIGTERM with --track)
+    std::vector<std::string> a = {"--object", kObject, "--detector-config", kSource + "/config/detector.yaml"};
+    const bool track = sig == SIGTERM;
+    if (track) a.push_back("--track");
+    Subprocess p(args(a), dir_, "sig" + std::to_string(sig));
     ASSERT_TRUE(waitServing(p, 30)) << p.err();
+    EXPECT_EQ(p.err().find("tracking") != std::string::npos, track) << p.err();
     p.signal(sig);
     EXPECT_EQ(p.wait(10), 0) << "signal " << sig << ": " << p.err();
     const json j = json::parse(p.out());
     EXPECT_EQ(j["frames_received"], 0);
     EXPECT_EQ(j["frames_dropped"], 0);
+    EXPECT_EQ(j.contains("frames_tracked"), track) << p.out();
   }
 }
 
