@@ -1,0 +1,166 @@
+// Timer harness for tracking (servo/tracker.h) and the robot's per-frame pipeline
+// (servo/target_tracker.h) on a rendered 640x480 sequence: a camera orbiting a 25 cm target at
+// 0.4-1.8 m, tilts to 50 deg, roll, motion blur, noise (robot/sim/synthetic_sequence.h).
+// Rows: the tracking step of each tracker (wall and thread CPU medians, frames per second,
+// accuracy against the ground truth, frames followed before a loss), then the whole pipeline
+// per frame (tracking plus the detections it needs) with and without periodic re-detection,
+// against detection on every frame. Bar: tracking step >= 200 frames per second (median).
+#include <opencv2/core.hpp>
+#include <cstdio>
+#include <string>
+
+#include "bench_util.h"
+#include "detector/detector.h"
+#include "robot/sim/synthetic_scene.h"
+#include "robot/sim/synthetic_sequence.h"
+#include "servo/target_tracker.h"
+#include "servo/tracker.h"
+
+using namespace refgrasp;
+
+namespace {
+
+using bench::median;
+
+void usage() {
+  std::printf(
+      "bench_tracker: the tracking step and the per-frame pipeline on a rendered 640x480 sequence\n"
+      "(a camera orbiting a 25 cm target at 0.4-1.8 m, tilts to 50 deg, roll, motion blur, noise).\n"
+      "Rows, tracking step: KLT + reference alignment (the default), KLT alone, vpMbGenericTracker\n"
+      "(KLT) and vpMbGenericTracker (KLT + moving edges), each started on the first frame's ground\n"
+      "truth: wall and thread CPU medians per frame, frames per second from the wall median, frames\n"
+      "followed before the first loss (and why it was lost), rotation / translation error median\n"
+      "and max. \"fps\" is 1000 / wall median, \"cpu fps\" 1000 / thread CPU median (what one core\n"
+      "sustains; the wall figure is only meaningful on a quiet machine).\n"
+      "Rows, pipeline per frame (servo::TargetTracker: detect, confirm, track, re-detect): tracking,\n"
+      "tracking with a re-detection in the predicted region every 10 frames, and detection on\n"
+      "every frame (--no-track): median, 95th percentile and max wall time, median thread CPU,\n"
+      "detector calls.\n"
+      "Bar: tracking step >= 200 frames per second (wall median).\n"
+      "Usage: bench_tracker [--frames N (default 120)] [--texture media/relative.png]\n"
+      "                     [--threads N (default 1)] [--help]\n"
+      "--threads N: OpenCV's thread pool size (cv::setNumThreads). With 1 everything runs on the\n"
+      "calling thread, so the thread CPU column is the whole cost and holds on a loaded machine.\n");
+}
+
+struct Row {
+  std::vector<double> wall, cpu, rot_deg, trans_pct;
+  int followed = 0;
+  int calls = 0;
+  template <class F>
+  void time(F&& f) {
+    double w = 0;
+    cpu.push_back(bench::threadCpuMs([&] { w = bench::timeMs(f); }));
+    wall.push_back(w);
+  }
+};
+
+double maxOf(const std::vector<double>& v) {
+  double m = 0;
+  for (double x : v) m = std::max(m, x);
+  return m;
+}
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, static_cast<size_t>(q * (v.size() - 1) + 0.5))];
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  int frames = 120, threads = 1;
+  std::string texture = "targets/cereal_box.png";
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--help" || a == "-h") {
+      usage();
+      return 0;
+    } else if (a == "--frames" && i + 1 < argc) {
+      frames = static_cast<int>(bench::intArg("bench_tracker", "--frames", argv[++i], 2));
+    } else if (a == "--threads" && i + 1 < argc) {
+      threads = static_cast<int>(bench::intArg("bench_tracker", "--threads", argv[++i], 1));
+    } else if (a == "--texture" && i + 1 < argc) {
+      texture = argv[++i];
+    } else {
+      std::fprintf(stderr, "bench_tracker: unknown argument '%s' (see --help)\n", a.c_str());
+      return 2;
+    }
+  }
+  cv::setNumThreads(threads);
+  testing::TrackingSequenceSpec spec;
+  spec.frames = frames;
+  spec.texture = texture;
+  const testing::TrackingSequence seq = testing::renderTrackingSequence(spec);
+  detector::Detector det;
+  det.addObject(detector::textureObject("target", testing::loadMedia(texture), spec.width_m));
+  std::printf("bench_tracker: %d frames 640x480, %s 25 cm, orbit 0.4-1.8 m, tilt <= 50 deg; OpenCV threads %d\n",
+              frames, texture.c_str(), threads);
+
+  std::printf("\ntracking step (started on frame 0's ground truth)\n");
+  std::printf("%-34s %9s %9s %7s %7s %9s %22s %22s\n", "tracker", "wall ms", "cpu ms", "fps", "cpu fps", "followed",
+              "rot deg median/max", "trans % median/max");
+  struct Variant {
+    const char* name;
+    servo::TrackerMethod method;
+    bool align, edges;
+  };
+  for (const Variant& v : {Variant{"KLT + reference alignment", servo::TrackerMethod::kKlt, true, false},
+                           Variant{"KLT alone", servo::TrackerMethod::kKlt, false, false},
+                           Variant{"vpMbGenericTracker KLT", servo::TrackerMethod::kMbt, false, false},
+                           Variant{"vpMbGenericTracker KLT + edges", servo::TrackerMethod::kMbt, false, true}}) {
+    servo::TrackerOptions opt;
+    opt.method = v.method;
+    opt.mbt_edges = v.edges;
+    auto tracker = servo::planarTrackerFactory(opt, v.align ? &det : nullptr)(det.object(0));
+    Row row;
+    std::string lost;
+    servo::TrackStep s = tracker->start(seq.mono[0].image, seq.camera, seq.truth[0]);
+    if (!s.ok) lost = "not started: " + s.lost_reason;
+    std::optional<Pose> last = seq.truth[0], before;
+    for (size_t k = 1; k < seq.mono.size() && s.ok; ++k) {
+      const Pose predicted = before ? *last * before->inverse() * *last : *last;
+      row.time([&] { s = tracker->track(seq.mono[k].image, seq.camera, predicted); });
+      if (!s.ok) {
+        lost = "lost at frame " + std::to_string(k) + ": " + s.lost_reason;
+        break;
+      }
+      ++row.followed;
+      before = last;
+      last = s.cMo;
+      row.rot_deg.push_back(rotationError(s.cMo, seq.truth[k]) * 180 / M_PI);
+      row.trans_pct.push_back(100 * translationError(s.cMo, seq.truth[k]) / seq.truth[k].t.norm());
+    }
+    const double wall = median(row.wall), cpu = median(row.cpu);
+    std::printf("%-34s %9.2f %9.2f %7.0f %7.0f %5d/%-3d %10.3f / %-9.3f %10.3f / %-9.3f\n", v.name, wall, cpu,
+                1e3 / wall, 1e3 / cpu, row.followed, frames - 1, median(row.rot_deg), maxOf(row.rot_deg),
+                median(row.trans_pct), maxOf(row.trans_pct));
+    if (!lost.empty()) std::printf("%-34s %s\n", "", lost.c_str());
+  }
+
+  std::printf("\npipeline per frame (servo::TargetTracker)\n");
+  std::printf("%-42s %9s %9s %9s %9s %7s\n", "mode", "median ms", "p95 ms", "max ms", "cpu ms", "calls");
+  struct Mode {
+    const char* name;
+    bool track;
+    int redetect;
+  };
+  for (const Mode& m : {Mode{"track (detect, confirm, then track)", true, 0},
+                        Mode{"track + prior re-detection every 10", true, 10},
+                        Mode{"detect every frame (--no-track)", false, 0}}) {
+    servo::TargetTrackerOptions o;
+    o.track = m.track;
+    o.redetect_every_frames = m.redetect;
+    servo::TargetTracker pipeline(det, o);
+    Row row;
+    for (size_t k = 0; k < seq.mono.size(); ++k) {
+      servo::TargetFrame f;
+      row.time([&] { f = pipeline.process(seq.mono[k], seq.camera); });
+      row.calls += f.detector_calls;
+    }
+    std::printf("%-42s %9.2f %9.2f %9.2f %9.2f %7d\n", m.name, median(row.wall), percentile(row.wall, 0.95),
+                maxOf(row.wall), median(row.cpu), row.calls);
+  }
+  return 0;
+}
