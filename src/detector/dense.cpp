@@ -50,13 +50,16 @@ namespace {
 /// normalised template and the normalised warped scene is small; blocks off the scene crop,
 /// blocks an occluder covers (large residual) and their neighbours are 0. `seen`: the fraction
 /// of the template's blocks in the scene and not occluded (before leaving the neighbours out).
+/// `region` (template px, optional): only its pixels are the pattern; blocks not wholly inside
+/// it are neither kept nor counted.
 cv::Mat occlusionMask(const cv::Mat& templ, const cv::Mat& scene, const cv::Mat& warp,
-                      const DenseRefineOptions& opt, double* seen) {
+                      const DenseRefineOptions& opt, const cv::Mat& region, double* seen) {
   *seen = 0;
   cv::Mat warped, inside;
   cv::warpPerspective(scene, warped, warp, templ.size(), cv::INTER_LINEAR + cv::WARP_INVERSE_MAP);
   cv::warpPerspective(cv::Mat(scene.size(), CV_8UC1, cv::Scalar(255)), inside, warp, templ.size(),
                       cv::INTER_NEAREST + cv::WARP_INVERSE_MAP);
+  if (!region.empty()) cv::bitwise_and(inside, region, inside);
   cv::Mat t, w;
   templ.convertTo(t, CV_32F);
   warped.convertTo(w, CV_32F);
@@ -82,8 +85,18 @@ cv::Mat occlusionMask(const cv::Mat& templ, const cv::Mat& scene, const cv::Mat&
   if (valid.empty()) return cv::Mat::zeros(templ.size(), CV_8UC1);
   std::nth_element(valid.begin(), valid.begin() + static_cast<long>(valid.size() / 2), valid.end());
   const double limit = std::max(opt.robust_min_residual, 3 * valid[valid.size() / 2]);
+  size_t pattern_blocks = block.size();
+  if (!region.empty()) {
+    pattern_blocks = 0;
+    for (int j = 0; j < by; ++j)
+      for (int i = 0; i < bx; ++i) {
+        const cv::Rect rc = cv::Rect(i * b, j * b, b, b) & cv::Rect(0, 0, templ.cols, templ.rows);
+        pattern_blocks += cv::countNonZero(region(rc)) == rc.area();
+      }
+    if (pattern_blocks == 0) return cv::Mat::zeros(templ.size(), CV_8UC1);
+  }
   *seen = std::count_if(valid.begin(), valid.end(), [&](double v) { return v <= limit; }) /
-          static_cast<double>(block.size());
+          static_cast<double>(pattern_blocks);
   cv::Mat mask = cv::Mat::zeros(templ.size(), CV_8UC1);
   // A block next to an occluded one is left out too: partly covered, its mean residual can pass.
   const auto occluded = [&](int i, int j) {
@@ -187,17 +200,22 @@ DenseRefineResult refineHomographyDense(const std::vector<cv::Mat>& ref_pyramid,
     cv::erode(mask, mask, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * inset + 1, 2 * inset + 1)));
     if (cv::countNonZero(mask) < 64) return res;
   }
+  // findTransformECC's mask marks valid pixels of the input (scene) image and must have its size:
+  // the polygon is moved there by the initial warp (a template-sized mask threw, so every polygon
+  // region's refinement failed).
+  cv::Mat scene_poly_mask;
+  if (mask_polygon) cv::warpPerspective(mask, scene_poly_mask, warp, crect.size(), cv::INTER_NEAREST);
   const cv::TermCriteria stop(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, opt.max_iterations,
                               opt.epsilon);
   try {
     res.correlation = cv::findTransformECC(
         ref_pyramid[L](trect), scene(crect), warp, cv::MOTION_HOMOGRAPHY, stop,
-        mask_polygon ? cv::_InputArray(mask) : cv::_InputArray(cv::noArray()), opt.gauss_filter_size);
+        mask_polygon ? cv::_InputArray(scene_poly_mask) : cv::_InputArray(cv::noArray()), opt.gauss_filter_size);
     // Robust: leave the occluded blocks out and align again, twice (the first warp was pulled
     // towards the occluder, so its residuals mark the occlusion only roughly).
     for (int round = 0; opt.robust && round < 2; ++round) {
       double seen = 0;
-      cv::Mat kept = occlusionMask(ref_pyramid[L](trect), scene(crect), warp, opt, &seen);
+      cv::Mat kept = occlusionMask(ref_pyramid[L](trect), scene(crect), warp, opt, mask, &seen);
       res.masked_fraction = 1 - seen;
       if (seen < opt.robust_min_kept) return res;
       if (seen >= 0.98) break;

@@ -96,6 +96,53 @@ TEST(DenseRefine, RecoversPerturbedHomography) {
   }
 }
 
+// A polygon region (make_reference's pattern_region): only the template pixels inside it count.
+// The scene shows the pattern inside a hexagon and another texture outside it (what a reference
+// photo's surroundings do): with the mask the refinement recovers H; before the mask was moved
+// into the scene's frame, OpenCV threw on the size mismatch and every polygon refinement failed.
+TEST(DenseRefine, APolygonRegionMasksTheTemplate) {
+  const cv::Mat tex = loadMedia("targets/poster_concert.png");
+  const cv::Mat other = loadMedia("clutter/clutter_03.png");
+  cv::Mat outside;
+  cv::resize(other, outside, tex.size());
+  const double W = tex.cols, Hh = tex.rows;
+  const std::vector<Eigen::Vector2d> hexagon = {
+      {0.25 * W, 0.1 * Hh}, {0.75 * W, 0.1 * Hh}, {0.95 * W, 0.5 * Hh},
+      {0.75 * W, 0.9 * Hh}, {0.25 * W, 0.9 * Hh}, {0.05 * W, 0.5 * Hh}};
+  cv::Mat inside = cv::Mat::zeros(tex.size(), CV_8UC1);
+  std::vector<cv::Point> poly;
+  for (const auto& p : hexagon) poly.emplace_back(cvRound(p.x()), cvRound(p.y()));
+  cv::fillPoly(inside, std::vector<std::vector<cv::Point>>{poly}, cv::Scalar(255));
+  cv::Mat shown = outside.clone();
+  tex.copyTo(shown, inside);  // the scene's object: the pattern in the hexagon, clutter around it
+  const double h = kWidth * tex.rows / tex.cols;
+  const Intrinsics cam = sceneCamera();
+  const std::vector<cv::Mat> pyr = buildReferencePyramid(tex);  // the reference: the whole photo
+  const auto rect = textureRect(tex);
+  SceneSpec spec;
+  spec.cMo = Pose::fromRotationVector({0.25, -0.3, 0.1}, {-0.05, 0.02, 0.8});
+  spec.seed = 90;
+  const RenderedScene s = renderTarget(cam, shown, kWidth, h, spec);
+  const Eigen::Matrix3d H0 = homographyFrom(rect, pushed(s.corners));
+  const DenseRefineOptions opt;
+  const DenseRefineResult masked = refineHomographyDense(pyr, s.image, H0, rect, opt, &hexagon);
+  ASSERT_TRUE(masked.ok);
+  const double e0 = cornerError(H0, rect, s.corners), e1 = cornerError(masked.H, rect, s.corners);
+  const DenseRefineResult whole = refineHomographyDense(pyr, s.image, H0, rect, opt);
+  std::printf("polygon mask: corr %.3f, corner error %.3f -> %.3f px (without the mask: ok %d, corr %.3f, %.3f px)\n",
+              masked.correlation, e0, e1, whole.ok, whole.correlation, cornerError(whole.H, rect, s.corners));
+  EXPECT_GT(masked.correlation, 0.9);
+  // The rectangle's corners lie outside the hexagon: their error is extrapolated.
+  EXPECT_LT(e1, 0.3);
+  EXPECT_LT(e1, 0.2 * e0);
+  // Robust too (the tracker's alignment of a polygon reference).
+  DenseRefineOptions robust = opt;
+  robust.robust = true;
+  const DenseRefineResult r2 = refineHomographyDense(pyr, s.image, H0, rect, robust, &hexagon);
+  ASSERT_TRUE(r2.ok);
+  EXPECT_LT(cornerError(r2.H, rect, s.corners), 0.3);
+}
+
 // dense.robust (the tracker's alignment): a panel over part of the pattern is left out of the
 // fit, the rest aligns as well as an unoccluded view; too little left is refused.
 TEST(DenseRefine, RobustLeavesAnOccluderOut) {
