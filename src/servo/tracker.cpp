@@ -37,6 +37,10 @@ void TrackerOptions::check() const {
   need(klt_pyramid_levels >= 0 && klt_pyramid_levels <= 6, "klt_pyramid_levels", "must be 0..6");
   need(klt_retry_pyramid_levels >= 0 && klt_retry_pyramid_levels <= 6, "klt_retry_pyramid_levels",
        "must be 0..6");
+  need(std::isfinite(shift_search_px) && shift_search_px >= 1 && shift_search_px <= 1000,
+       "shift_search_px", "must be 1..1000");
+  need(std::isfinite(shift_min_score) && shift_min_score >= 0 && shift_min_score <= 1,
+       "shift_min_score", "must be 0..1");
   need(std::isfinite(pattern_border_px) && pattern_border_px >= 0, "pattern_border_px", "must be >= 0");
   need(std::isfinite(inlier_threshold_px) && inlier_threshold_px > 0, "inlier_threshold_px",
        "must be > 0");
@@ -221,6 +225,68 @@ class KltPlanarTracker : public FrameTracker {
     cv::buildOpticalFlowPyramid(gray, *pyr, cv::Size(opt_.klt_window_px, opt_.klt_window_px), maxLevels());
   }
 
+  /// The image shift the prediction missed (full-resolution px, to add to `guess`): the previous
+  /// frame's feature region (the pattern, little background) matched (normalised correlation)
+  /// in this frame within shift_search_px of where the prediction puts it, on the coarsest
+  /// pyramid level (at most 2) where the region is still >= 32 px across. Empty when the region
+  /// is too small, the best match is weak (< shift_min_score) or on the search area's edge.
+  std::optional<cv::Point2f> missedShift(const std::vector<cv::Mat>& pyr,
+                                         const std::vector<cv::Point2f>& guess) const {
+    if (pts_.size() < 3 || guess.size() != pts_.size()) return std::nullopt;
+    const cv::Rect2f box = cv::boundingRect(pts_);
+    int L = std::min(2, maxLevels());
+    while (L > 0 && std::min(box.width, box.height) / static_cast<float>(1 << L) < 32) --L;
+    const size_t idx = static_cast<size_t>(2 * L);  // image, derivatives, image, ... (withDerivatives)
+    if (idx >= pyr.size() || idx >= prev_pyr_.size()) return std::nullopt;
+    const cv::Mat& prev = prev_pyr_[idx];
+    const cv::Mat& cur = pyr[idx];
+    if (prev.size() != cur.size() || prev.type() != CV_8UC1) return std::nullopt;
+    const float scale = static_cast<float>(1 << L);
+    std::vector<float> ox, oy;
+    for (size_t i = 0; i < pts_.size(); ++i) {
+      ox.push_back(guess[i].x - pts_[i].x);
+      oy.push_back(guess[i].y - pts_[i].y);
+    }
+    const auto median = [](std::vector<float> v) {
+      std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 2), v.end());
+      return v[v.size() / 2];
+    };
+    const cv::Point2f predicted_shift(median(ox), median(oy));  // full-resolution px
+    const cv::Rect img(0, 0, prev.cols, prev.rows);
+    const cv::Rect tr = cv::Rect(cv::Point(cvCeil(box.x / scale), cvCeil(box.y / scale)),
+                                 cv::Point(cvFloor(box.br().x / scale) + 1, cvFloor(box.br().y / scale) + 1)) & img;
+    if (tr.width < 16 || tr.height < 16) return std::nullopt;
+    const int r = static_cast<int>(std::ceil(opt_.shift_search_px / scale));
+    const cv::Point off(cvRound(predicted_shift.x / scale), cvRound(predicted_shift.y / scale));
+    const cv::Rect wanted(tr.x + off.x - r, tr.y + off.y - r, tr.width + 2 * r, tr.height + 2 * r);
+    const cv::Rect sr = wanted & img;
+    if (sr.width < tr.width + 2 || sr.height < tr.height + 2) return std::nullopt;
+    cv::Mat score;
+    cv::matchTemplate(cur(sr), prev(tr), score, cv::TM_CCOEFF_NORMED);
+    double best = 0;
+    cv::Point at;
+    cv::minMaxLoc(score, nullptr, &best, nullptr, &at);
+    if (!(best >= opt_.shift_min_score)) return std::nullopt;
+    // A best match on the edge of the searched area (not the image's) is no peak.
+    if ((at.x == 0 && sr.x == wanted.x) || (at.y == 0 && sr.y == wanted.y) ||
+        (at.x == score.cols - 1 && sr.br().x == wanted.br().x) ||
+        (at.y == score.rows - 1 && sr.br().y == wanted.br().y))
+      return std::nullopt;
+    // Sub-pixel peak (parabola through the neighbours).
+    const auto sub = [&](float a, float b, float c) {
+      const float d = a - 2 * b + c;
+      return std::abs(d) > 1e-6f ? std::clamp(0.5f * (a - c) / d, -0.5f, 0.5f) : 0.f;
+    };
+    float dx = 0, dy = 0;
+    if (at.x > 0 && at.x < score.cols - 1)
+      dx = sub(score.at<float>(at.y, at.x - 1), score.at<float>(at.y, at.x), score.at<float>(at.y, at.x + 1));
+    if (at.y > 0 && at.y < score.rows - 1)
+      dy = sub(score.at<float>(at.y - 1, at.x), score.at<float>(at.y, at.x), score.at<float>(at.y + 1, at.x));
+    const cv::Point2f motion((static_cast<float>(sr.x + at.x - tr.x) + dx) * scale,
+                             (static_cast<float>(sr.y + at.y - tr.y) + dy) * scale);
+    return motion - predicted_shift;
+  }
+
   /// One KLT measurement with `levels` pyramid levels from the predicted positions, then the
   /// robust pose: features (index into ids_), their positions, and which are inliers.
   struct Measurement {
@@ -302,11 +368,27 @@ class KltPlanarTracker : public FrameTracker {
     std::vector<cv::Mat> pyr;
     pyramid(gray, &pyr);
     Measurement m = measure(pyr, guess, opt_.klt_pyramid_levels, cam, predicted);
-    // A poor prediction (a sudden change of motion) needs the coarser levels.
+    // A poor prediction (a sudden change of motion) needs the coarser levels, or the shift the
+    // prediction missed measured on the whole pattern region at once (a partly hidden or partly
+    // out-of-view pattern leaves coarse KLT windows to the background).
     if (2 * m.inliers < static_cast<int>(ids_.size()) &&
         opt_.klt_retry_pyramid_levels > opt_.klt_pyramid_levels) {
       Measurement again = measure(pyr, guess, opt_.klt_retry_pyramid_levels, cam, predicted);
       if (again.inliers > m.inliers) m = std::move(again);
+    }
+    if (2 * m.inliers < static_cast<int>(ids_.size()) && opt_.shift_retry) {
+      if (const std::optional<cv::Point2f> d = missedShift(pyr, guess)) {
+        std::vector<cv::Point2f> shifted = guess;
+        for (cv::Point2f& g : shifted) g += *d;
+        Pose moved = predicted;  // the prediction moved by the shift at the pattern's depth
+        const Eigen::Vector3d c = predicted.t;
+        if (c.z() > 1e-6) {
+          moved.t.x() += d->x * c.z() / cam.fx;
+          moved.t.y() += d->y * c.z() / cam.fy;
+        }
+        Measurement again = measure(pyr, shifted, opt_.klt_pyramid_levels, cam, moved);
+        if (again.inliers > m.inliers) m = std::move(again);
+      }
     }
     prev_pyr_ = pyr;
     if (!m.pose_ok || m.inliers < opt_.min_features) {

@@ -101,6 +101,12 @@ struct TrackerOptions {
   /// When fewer than half the features fit the pose, KLT again with this many levels (a sudden
   /// change of motion the prediction missed); <= klt_pyramid_levels: never.
   int klt_retry_pyramid_levels = 4;
+  /// ... and then from the shift the prediction missed: the previous frame's pattern region
+  /// matched (normalised correlation, coarse pyramid level) within shift_search_px of where the
+  /// prediction puts it; a best match below shift_min_score (0..1) is not used.
+  bool shift_retry = true;
+  double shift_search_px = 64;
+  double shift_min_score = 0.5;
   double pattern_border_px = 6;         ///< features this far inside the projected outline only
   double inlier_threshold_px = 2.5;     ///< features with a larger residual are dropped
   /// Features whose KLT error (mean absolute gray difference of the window) exceeds

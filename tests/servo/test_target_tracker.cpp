@@ -114,6 +114,49 @@ TEST(PlanarTracker, FollowsAnOrbitingCameraWithinTheDetectorsTolerances) {
   EXPECT_GE(aligned, static_cast<int>(seq.mono.size()) * 9 / 10);
 }
 
+// A sudden change of motion the prediction misses by about 40 px (the target 0.9-1.8 m away): KLT
+// from the prediction with 2 pyramid levels cannot bridge it; the shift measured by phase
+// matched between the frames can, and the poses keep the tolerances.
+TEST(PlanarTracker, RecoversTheShiftAPredictionMissed) {
+  const auto& seq = orbitStart();
+  const auto offPrediction = [&](size_t k) {  // truth moved 40 px right and 15 px up in the image
+    Pose p = seq.truth[k];
+    p.t.x() += 40 * p.t.z() / seq.camera.fx;
+    p.t.y() -= 15 * p.t.z() / seq.camera.fy;
+    return p;
+  };
+  servo::TrackerOptions plain;
+  plain.klt_retry_pyramid_levels = plain.klt_pyramid_levels;  // no coarser KLT: the shift alone
+  servo::TrackerOptions no_shift = plain;
+  no_shift.shift_retry = false;
+  int lost_without = 0;
+  for (size_t k = 1; k < seq.mono.size(); k += 3) {
+    auto t = servo::planarTrackerFactory(no_shift, &targetDetector())(targetDetector().object(0));
+    ASSERT_TRUE(t->start(seq.mono[k - 1].image, seq.camera, seq.truth[k - 1]).ok);
+    const servo::TrackStep s = t->track(seq.mono[k].image, seq.camera, offPrediction(k));
+    lost_without += !s.ok || rotationError(s.cMo, seq.truth[k]) * kDeg > 1.0;
+  }
+  EXPECT_EQ(lost_without, 4) << "without the shift, a 40 px miss is beyond 2-level KLT";
+  auto tracker = servo::planarTrackerFactory(plain, &targetDetector())(targetDetector().object(0));
+  ASSERT_TRUE(tracker->start(seq.mono[0].image, seq.camera, seq.truth[0]).ok);
+  Errors e;
+  for (size_t k = 1; k < seq.mono.size(); ++k) {
+    const servo::TrackStep s = tracker->track(seq.mono[k].image, seq.camera, offPrediction(k));
+    ASSERT_TRUE(s.ok) << "frame " << k << ": " << s.lost_reason;
+    e.add(s.cMo, seq.truth[k]);
+  }
+  std::printf("40 px missed by the prediction, %zu frames: rotation max %.3f deg, translation max %.3f%%\n",
+              seq.mono.size() - 1, e.maxRot(), 100 * e.maxTrans());
+  EXPECT_LT(e.maxRot(), 1.0);
+  EXPECT_LT(e.maxTrans(), 0.01);
+  servo::TrackerOptions bad;
+  bad.shift_min_score = 1.5;
+  EXPECT_THROW(bad.check(), std::invalid_argument);
+  bad = servo::TrackerOptions();
+  bad.shift_search_px = std::nan("");
+  EXPECT_THROW(bad.check(), std::invalid_argument);
+}
+
 // The pipeline: detected, confirmed by the next detection, then tracked to the end with the
 // detector's accuracy.
 TEST(TargetTracker, TracksTheOrbitWithTwoDetections) {
