@@ -18,6 +18,7 @@
 #include "robot/backend.h"
 #include "robot/backends.h"
 #include "robot/enon_model.h"
+#include "robot/sources.h"
 #include "robot/sim/scenario.h"
 #include "robot/sim/sim_enon.h"
 #include "tool/tool.h"
@@ -99,6 +100,20 @@ EnonGraspResult runEnonGraspSession(const EnonGraspOptions& o, std::FILE* progre
     throw ConfigError("command line", "--oracle",
                       "needs --backend sim (the ground truth is the simulator's)");
 
+  if (!o.camera.empty() && o.backend == "sim")
+    throw ConfigError("command line", "--camera",
+                      "needs a robot backend other than sim (the simulator renders its own camera)");
+  // The camera first: "no camera found" before anything moves.
+  std::unique_ptr<robot::StereoSource> camera;
+  if (!o.camera.empty()) {
+    robot::SourceRequest req;
+    req.spec = o.camera;
+    req.eyes = robot::Eyes::kStereo;
+    req.rig = model.head.rig;
+    req.settings = o.camera_settings;
+    camera = robot::onCallerClock(robot::openSource(req));
+  }
+
   std::unique_ptr<robot::Robot> robot;
   sim::SimEnon* sim = nullptr;
   if (o.backend == "sim") {
@@ -112,6 +127,7 @@ EnonGraspResult runEnonGraspSession(const EnonGraspOptions& o, std::FILE* progre
     c.params = o.backend_params;
     c.source = "command line";
     robot = robot::makeRobot(model, c);
+    if (camera) robot->replaceCamera(std::move(camera));
   }
   std::unique_ptr<GraspLog> log;
   if (!o.log_dir.empty())
@@ -233,6 +249,14 @@ int enonGraspMain(int argc, char** argv) {
       ->check(tool::Finite(1e-3, 86400));
   app.add_option("--detector-config", o.detector_config,
                  "detector options YAML (every field: config/detector.yaml)");
+  app.add_option("--camera", o.camera,
+                 "not sim: the stereo camera from this source instead of the backend's, with the\n"
+                 "robot model's rig: bb2 or bb2:GUID (the Bumblebee2 on this computer's FireWire\n"
+                 "bus: the on-robot line), recording:DIR or folders:LEFT,RIGHT (played as if\n"
+                 "captured live)");
+  std::string camera_config;
+  app.add_option("--camera-config", camera_config,
+                 "bb2: the camera's YAML (guid, frame_rate_hz, shutter_s, gain_db, dma_buffers)");
   std::string ns = "/enon";
   int domain = 0;
   if (const char* d = std::getenv("ROS_DOMAIN_ID"); d && *d) domain = std::atoi(d);
@@ -241,6 +265,10 @@ int enonGraspMain(int argc, char** argv) {
       app.add_option("--domain", domain, "dds: DDS domain id (default: $ROS_DOMAIN_ID, else 0)");
   tool::parse(app, argc, argv);
   if (*seed_opt) o.seed = seed;
+  if (!camera_config.empty()) {
+    if (o.camera.empty()) throw std::invalid_argument("--camera-config: only with --camera");
+    o.camera_settings["config"] = camera_config;
+  }
   if (o.backend != "sim") {
     o.backend_params["ns"] = ns;
     o.backend_params["domain"] = std::to_string(domain);

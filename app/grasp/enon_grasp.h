@@ -33,6 +33,11 @@ struct EnonGraspOptions {
   double max_time_s = 0;         ///< 0: the scenario's max_duration_s
   std::string detector_config;
   std::map<std::string, std::string> backend_params;  ///< extra backend settings (dds: domain, ns)
+  /// Not "sim": the robot's camera from this frame source instead of the backend's (robot/
+  /// sources.h; on the enon "bb2": the Bumblebee2 on this computer's FireWire bus, with the robot
+  /// model's rig). Empty: the backend's camera (dds: image_raw on the bus).
+  std::string camera;
+  std::map<std::string, std::string> camera_settings;  ///< robot::SourceRequest::settings
   servo::GraspOptions grasp;
 };
 

@@ -1,5 +1,7 @@
 #include "robot/hal.h"
 
+#include <stdexcept>
+
 #include <algorithm>
 #include <cmath>
 #include <sstream>
@@ -158,6 +160,13 @@ Robot::Robot(const EnonModel& model, std::unique_ptr<RobotHardware> hardware,
 
 Robot::~Robot() {
   if (lifecycle_ == Lifecycle::kActive) deactivate();
+}
+
+void Robot::replaceCamera(std::unique_ptr<StereoSource> camera) {
+  if (!camera) throw std::invalid_argument("Robot::replaceCamera: no camera");
+  if (lifecycle_ != Lifecycle::kUnconfigured)
+    throw std::logic_error("Robot::replaceCamera: the robot is already configured");
+  cam_ = std::move(camera);
 }
 
 ReturnType Robot::configure() {

@@ -181,6 +181,11 @@ class Robot {
   Robot(const Robot&) = delete;
   Robot& operator=(const Robot&) = delete;
 
+  /// Another camera for this robot (e.g. a local Bumblebee2 beside a robot driven over DDS):
+  /// only before configure(). Throws std::logic_error after it, std::invalid_argument for null.
+  /// The new camera's stamps must be on the clock of read()'s time (robot/sources.h onCallerClock).
+  void replaceCamera(std::unique_ptr<StereoSource> camera);
+
   ReturnType configure();
   ReturnType activate();
   ReturnType deactivate();  ///< stops the robot first

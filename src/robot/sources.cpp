@@ -1,6 +1,7 @@
 // openSource: the one place that knows every camera backend (as backends.cpp knows every robot).
 #include "robot/sources.h"
 
+#include <chrono>
 #include <cmath>
 #include <filesystem>
 #include <set>
@@ -44,6 +45,32 @@ class LeftEye : public FrameSource {
 
  private:
   std::unique_ptr<StereoSource> s_;
+};
+
+// onCallerClock's adaptor.
+class CallerClock : public StereoSource {
+ public:
+  CallerClock(std::unique_ptr<StereoSource> s, bool host_unix_clock)
+      : s_(std::move(s)), unix_(host_unix_clock) {}
+  const StereoRig& rig() const override { return s_->rig(); }
+  ReturnType grab(Seconds time, std::optional<StereoFrame>* frame) override {
+    const ReturnType r = s_->grab(time, frame);
+    if (*frame) {
+      if (unix_) {
+        const double now = std::chrono::duration<double>(
+                               std::chrono::system_clock::now().time_since_epoch()).count();
+        (*frame)->stamp -= now - time;
+      } else {
+        (*frame)->stamp = time;
+      }
+    }
+    return r;
+  }
+  std::string lastError() const override { return s_->lastError(); }
+
+ private:
+  std::unique_ptr<StereoSource> s_;
+  bool unix_;
 };
 
 struct Settings {
@@ -105,6 +132,12 @@ void deliverMono(const SourceRequest& r, std::unique_ptr<FrameSource> s, OpenedS
 }
 
 }  // namespace
+
+std::unique_ptr<StereoSource> onCallerClock(OpenedSource source) {
+  if (!source.stereo)
+    throw ConfigError(source.description, "a stereo camera is needed, this source is mono");
+  return std::make_unique<CallerClock>(std::move(source.stereo), source.kind == "bb2");
+}
 
 const char* sourceSpecHelp() {
   return "recording:DIR | folder:DIR | folders:LEFT,RIGHT | video:FILE | v4l2:DEVICE | bb2[:GUID] |\n"

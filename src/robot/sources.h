@@ -57,6 +57,13 @@ struct OpenedSource {
 /// source, and whatever the source itself refuses (undecodable video, no camera found, ...).
 OpenedSource openSource(const SourceRequest& request);
 
+/// A stereo source whose stamps are on the caller's clock: the clock of grab()'s `time` (a control
+/// loop's seconds since its start, say), which must run at the real-time rate. The Bumblebee2
+/// stamps on the host's Unix clock: each stamp moves by (Unix time now - `time`) at its grab.
+/// Offline and simulated sources (recording, folders, sim) are played as if captured at the
+/// grab: stamp = `time`. Throws ConfigError for a mono source (the spec named).
+std::unique_ptr<StereoSource> onCallerClock(OpenedSource source);
+
 /// The spec list above, for --help texts.
 const char* sourceSpecHelp();
 

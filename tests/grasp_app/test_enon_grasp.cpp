@@ -191,6 +191,11 @@ TEST(EnonGraspApp, BadOptionsAndFilesExit2WithOneLine) {
       {"--scenario " + kTableSingle + kEnon + " --seed abc", "--seed"},
       {"--scenario " + kTableSingle + kEnon + " --oracle --log " + (dir / "occupied").string(), "occupied"},
       {"--scenario " + kTableSingle + kEnon + " --detector-config " + (dir / "bad.yaml").string(), "bad.yaml"},
+      {"--scenario " + kTableSingle + kEnon + " --camera bb2", "--camera: needs a robot backend other than sim"},
+      {"--scenario " + kTableSingle + kEnon + " --camera-config x.yaml", "--camera-config: only with --camera"},
+      // No FireWire camera here: found missing before the robot is started.
+      {"--camera bb2:ffffffffffffffff --backend dds --scenario " + kTableSingle + kEnon, "bb2: no "},
+      {"--scenario " + kTableSingle + kEnon + " --backend dds --camera " + (dir / "missing_rec").string(), "missing_rec"},
   };
   for (const Case& c : cases) {
     const AppRun r = runApp("enon_grasp", c.args);

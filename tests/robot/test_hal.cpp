@@ -423,3 +423,22 @@ TEST(EnonYaml, BadCollisionGeometryGivesOneLineErrors) {
   bad.arm.upper_arm.to_frame = 9;
   EXPECT_THROW(bad.check(), std::invalid_argument);
 }
+
+// Robot::replaceCamera: another camera before configure() (enon_grasp --camera), refused after.
+TEST_F(HalFixture, TheCameraIsReplacedOnlyBeforeConfiguration) {
+  auto other = std::make_unique<FakeCamera>();
+  FakeCamera* second = other.get();
+  second->next = StereoFrame();
+  second->next->left = cv::Mat(4, 4, CV_8UC1, cv::Scalar(7));
+  second->next->stamp = 0.0;
+  EXPECT_THROW(robot->replaceCamera(nullptr), std::invalid_argument);
+  robot->replaceCamera(std::move(other));
+  activate();
+  ASSERT_EQ(robot->read(0, 0.02), ReturnType::kOk);
+  std::optional<StereoFrame> f;
+  ASSERT_EQ(robot->camera().grab(0, &f), ReturnType::kOk);
+  ASSERT_TRUE(f.has_value());
+  EXPECT_EQ(f->left.at<uint8_t>(0, 0), 7);  // from the new camera
+  EXPECT_TRUE(f->capture.bMc.has_value());   // filled by the layer as for the old one
+  EXPECT_THROW(robot->replaceCamera(std::make_unique<FakeCamera>()), std::logic_error);
+}

@@ -1,6 +1,7 @@
 // robot/sources.h: opening frame sources from text specs, with one-line errors.
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <opencv2/imgcodecs.hpp>
 
 #include "core/error.h"
@@ -123,4 +124,56 @@ TEST(Sources, TheSimulatedCameraDeliversFramesWithGroundTruth) {
   ASSERT_EQ(s.stereo->grab(0, &f), ReturnType::kOk);
   EXPECT_EQ(f->index, 1);
   EXPECT_NEAR(f->stamp, 1.0 / 48, 1e-12);
+}
+
+namespace {
+
+// A live stereo source stamping on the host's Unix clock, 40 ms before the grab.
+struct UnixClockCamera : robot::StereoSource {
+  StereoRig rig_ = smallRig();
+  const StereoRig& rig() const override { return rig_; }
+  ReturnType grab(Seconds, std::optional<robot::StereoFrame>* f) override {
+    robot::StereoFrame s;
+    s.left = cv::Mat(48, 64, CV_8UC1, cv::Scalar(1));
+    s.right = s.left.clone();
+    s.stamp = std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count() - 0.040;
+    *f = s;
+    return ReturnType::kOk;
+  }
+};
+
+}  // namespace
+
+// onCallerClock (enon_grasp --camera): the Bumblebee2's Unix-clock stamps move onto the caller's
+// clock keeping the capture delay; offline sources are stamped at the grab; mono is refused.
+TEST(Sources, OnCallerClockPutsStampsOnTheLoopsClock) {
+  robot::OpenedSource bb2;
+  bb2.stereo = std::make_unique<UnixClockCamera>();
+  bb2.kind = "bb2";
+  bb2.live = true;
+  auto cam = robot::onCallerClock(std::move(bb2));
+  std::optional<robot::StereoFrame> f;
+  ASSERT_EQ(cam->grab(12.5, &f), ReturnType::kOk);
+  ASSERT_TRUE(f.has_value());
+  EXPECT_NEAR(f->stamp, 12.5 - 0.040, 0.005);
+
+  robot::SourceRequest r;
+  r.spec = "recording:" + stereoRecording(2).string();
+  r.eyes = robot::Eyes::kStereo;
+  auto rec = robot::onCallerClock(robot::openSource(r));
+  ASSERT_EQ(rec->grab(3.25, &f), ReturnType::kOk);
+  ASSERT_TRUE(f.has_value());
+  EXPECT_EQ(f->stamp, 3.25);
+  ASSERT_EQ(rec->grab(3.5, &f), ReturnType::kOk);
+  ASSERT_TRUE(f.has_value());
+  EXPECT_EQ(f->stamp, 3.5);
+
+  robot::OpenedSource mono;
+  mono.description = "folder:x";
+  try {
+    robot::onCallerClock(std::move(mono));
+    ADD_FAILURE() << "a mono source was accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_EQ(std::string(e.what()), "folder:x: a stereo camera is needed, this source is mono");
+  }
 }
