@@ -29,6 +29,9 @@ using Clock = std::chrono::steady_clock;
 // A pose whose pattern corners lie farther than this from the matched homography's is refused.
 constexpr double kMaxPoseGapPx = 4.0;
 constexpr double kMaxPoseGapFraction = 0.1;  // of the pattern's diagonal in the image
+// poseFromDenseH with a prior: the pose continuing it is kept unless the other fits this much
+// better (RMS px over the grid of densely aligned pattern points).
+constexpr double kAmbiguityMarginPx = 0.5;
 double msSince(Clock::time_point t0) {
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
@@ -168,8 +171,11 @@ DenseRefineResult refineDense(const RegisteredObject& e, const Eigen::Matrix3d& 
 
 // Pose from a grid of pattern points mapped by a densely refined H (undistorted reference px ->
 // undistorted scene px).
+// prior (tracking): of the planar ambiguity's two poses, the one continuing the prior unless the
+// other fits clearly better (estimatePoseRefinedNear).
 PoseResult poseFromDenseH(const RegisteredObject& e, const DetectorOptions& opt,
-                          const Eigen::Matrix3d& H, const Intrinsics& camera) {
+                          const Eigen::Matrix3d& H, const Intrinsics& camera,
+                          const Pose* prior = nullptr) {
   const PlanarTarget& target = *e.model.target;
   const int n = opt.dense.pose_grid;
   std::vector<Eigen::Vector3d> X;
@@ -185,6 +191,8 @@ PoseResult poseFromDenseH(const RegisteredObject& e, const DetectorOptions& opt,
       X.push_back(*Xo);
       y.push_back(applyHomography(H, r));
     }
+  if (prior && prior->isFinite())
+    return estimatePoseRefinedNear(X, y, target, camera.K(), opt.pose_options, *prior, kAmbiguityMarginPx);
   return estimatePoseRefined(X, y, target, camera.K(), opt.pose_options);
 }
 
@@ -574,7 +582,7 @@ PoseAlignment Detector::alignPose(const cv::Mat& image, const Intrinsics& camera
     out.corner_shift_px = dr.corner_shift_px;
     out.used_fraction = 1 - dr.masked_fraction;
     if (!dr.ok) return out;
-    const PoseResult p = poseFromDenseH(e, opt_, dr.H, camera);
+    const PoseResult p = poseFromDenseH(e, opt_, dr.H, camera, &cMo);
     if (!p.ok || !p.cMo.isFinite()) return out;
     out.ok = true;
     out.cMo = p.cMo;

@@ -231,13 +231,17 @@ PoseResult estimatePosePaper(const Eigen::Matrix3d& H, const PlanarTarget& targe
   return res;
 }
 
-PoseResult estimatePoseRefined(const std::vector<Eigen::Vector3d>& points_o,
-                               const std::vector<Eigen::Vector2d>& points_px,
-                               const PlanarTarget& target, const Eigen::Matrix3d& K_scene,
-                               const PoseOptions& opt, const std::vector<double>& sigma_px) {
-  PoseResult res;
+namespace {
+
+/// IPPE's solutions (one or two: a planar pattern's pose ambiguity), each refined by LM.
+std::vector<PoseResult> refinedIppeSolutions(const std::vector<Eigen::Vector3d>& points_o,
+                                             const std::vector<Eigen::Vector2d>& points_px,
+                                             const PlanarTarget& target, const Eigen::Matrix3d& K_scene,
+                                             const PoseOptions& opt, const std::vector<double>& sigma_px,
+                                             bool both) {
+  std::vector<PoseResult> out;
   const size_t n = points_o.size();
-  if (n < 4 || points_px.size() != n) return res;
+  if (n < 4 || points_px.size() != n) return out;
   // IPPE wants points on z = 0: give it plane-frame coordinates.
   const Pose pMo = target.oMp.inverse();
   std::vector<cv::Point3d> obj;
@@ -252,21 +256,58 @@ PoseResult estimatePoseRefined(const std::vector<Eigen::Vector3d>& points_o,
   cv::Mat Kcv(3, 3, CV_64F);
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) Kcv.at<double>(r, c) = K_scene(r, c);
-  cv::Mat rvec, tvec;
-  bool solved = false;
+  std::vector<cv::Mat> rvecs, tvecs;
   try {
-    solved = cv::solvePnP(obj, img, Kcv, cv::noArray(), rvec, tvec, false, cv::SOLVEPNP_IPPE);
+    if (both) {
+      cv::solvePnPGeneric(obj, img, Kcv, cv::noArray(), rvecs, tvecs, false, cv::SOLVEPNP_IPPE);
+    } else {
+      cv::Mat rvec, tvec;
+      if (cv::solvePnP(obj, img, Kcv, cv::noArray(), rvec, tvec, false, cv::SOLVEPNP_IPPE)) {
+        rvecs.push_back(rvec);
+        tvecs.push_back(tvec);
+      }
+    }
   } catch (const cv::Exception&) {
-    solved = false;
+    return out;
   }
-  if (!solved) return res;
-  const Eigen::Vector3d rv(rvec.at<double>(0), rvec.at<double>(1), rvec.at<double>(2));
-  const Eigen::Vector3d tv(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2));
-  const Pose cMo = Pose::fromRotationVector(rv, tv) * pMo;
-  res = refinePoseLM(points_o, points_px, K_scene, cMo, opt.refined_lm_iterations, opt.huber_px,
-                     sigma_px);
-  if (res.ok && !cornersInFront(res.cMo, target, opt.min_corner_depth_m)) res.ok = false;
-  return res;
+  for (size_t k = 0; k < rvecs.size() && k < tvecs.size(); ++k) {
+    const cv::Mat& rvec = rvecs[k];
+    const cv::Mat& tvec = tvecs[k];
+    const Eigen::Vector3d rv(rvec.at<double>(0), rvec.at<double>(1), rvec.at<double>(2));
+    const Eigen::Vector3d tv(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2));
+    const Pose cMo = Pose::fromRotationVector(rv, tv) * pMo;
+    PoseResult res = refinePoseLM(points_o, points_px, K_scene, cMo, opt.refined_lm_iterations, opt.huber_px,
+                                  sigma_px);
+    if (res.ok && !cornersInFront(res.cMo, target, opt.min_corner_depth_m)) res.ok = false;
+    if (res.ok) out.push_back(res);
+  }
+  return out;
+}
+
+}  // namespace
+
+PoseResult estimatePoseRefined(const std::vector<Eigen::Vector3d>& points_o,
+                               const std::vector<Eigen::Vector2d>& points_px,
+                               const PlanarTarget& target, const Eigen::Matrix3d& K_scene,
+                               const PoseOptions& opt, const std::vector<double>& sigma_px) {
+  const std::vector<PoseResult> s = refinedIppeSolutions(points_o, points_px, target, K_scene, opt, sigma_px, false);
+  return s.empty() ? PoseResult() : s.front();
+}
+
+PoseResult estimatePoseRefinedNear(const std::vector<Eigen::Vector3d>& points_o,
+                                   const std::vector<Eigen::Vector2d>& points_px,
+                                   const PlanarTarget& target, const Eigen::Matrix3d& K_scene,
+                                   const PoseOptions& opt, const Pose& prior, double ambiguity_margin_px) {
+  const std::vector<PoseResult> s = refinedIppeSolutions(points_o, points_px, target, K_scene, opt, {}, true);
+  if (s.empty()) return {};
+  double best_rms = s.front().rms_px;
+  for (const PoseResult& r : s) best_rms = std::min(best_rms, r.rms_px);
+  const PoseResult* pick = nullptr;
+  for (const PoseResult& r : s) {
+    if (!(r.rms_px <= best_rms + ambiguity_margin_px)) continue;
+    if (!pick || rotationError(r.cMo, prior) < rotationError(pick->cMo, prior)) pick = &r;
+  }
+  return pick ? *pick : s.front();
 }
 
 }  // namespace refgrasp::detector

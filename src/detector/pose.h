@@ -76,6 +76,15 @@ PoseResult estimatePoseRefined(const std::vector<Eigen::Vector3d>& points_o,
                                const PlanarTarget& target, const Eigen::Matrix3d& K_scene,
                                const PoseOptions& opt, const std::vector<double>& sigma_px = {});
 
+/// As estimatePoseRefined (equal sigmas), near a prior pose (tracking): a nearly affine view (a
+/// small or far pattern) has two poses that reproject almost equally, IPPE's two solutions (at
+/// 3.3 m, a 0.2 m pattern seen at 60 deg: 120 deg apart). Both are refined; of those whose RMS
+/// is within ambiguity_margin_px of the best, the one nearest the prior in rotation is returned.
+PoseResult estimatePoseRefinedNear(const std::vector<Eigen::Vector3d>& points_o,
+                                   const std::vector<Eigen::Vector2d>& points_px,
+                                   const PlanarTarget& target, const Eigen::Matrix3d& K_scene,
+                                   const PoseOptions& opt, const Pose& prior, double ambiguity_margin_px);
+
 /// Levenberg-Marquardt on reprojection error. Update: R <- exp([dw]x) R, t <- t + dt.
 /// Residual i is divided by sigma_px[i] (empty: 1); huber (in those units) <= 0: plain least
 /// squares. rms_px is the unweighted RMS. Returns ok=false if a point ends up behind the camera.
