@@ -26,6 +26,7 @@ constexpr double kHomographyErrorPerPx = 0.03; // extrapolating a fit from the s
 constexpr int kQuickNeighbours = 40;           // detectable reference neighbours tried in the quick test
 constexpr int kQuickMinMatches = 4;            // quick test passes with this many local matches
 constexpr int kPass1MinMatches = 6;            // pass-1 matches needed to fit a homography
+constexpr int kPass1Neighbours = 200;          // detectable reference neighbours tried in pass 1
 constexpr double kOverlapFraction = 0.25;      // instances overlapping more than this conflict
 constexpr double kMinAreaPx2 = 64.0;           // smallest projected pattern accepted
 constexpr double kAmbiguousSeedFraction = 0.7; // twin seeds need d1, d2 < this x max_descriptor_distance
@@ -350,7 +351,7 @@ bool evaluateHypothesis(const Context& cx, int r, int s, Candidate* out) {
   std::vector<LocalMatch> m;
   localSearch(cx, sim, &cx.ref.neighbours[r], simRadius, &m, kQuickNeighbours);
   if (static_cast<int>(m.size()) < kQuickMinMatches) return tooFewLocal();
-  localSearch(cx, sim, &cx.ref.neighbours[r], simRadius, &m);
+  localSearch(cx, sim, &cx.ref.neighbours[r], simRadius, &m, kPass1Neighbours);
   if (static_cast<int>(m.size()) < kPass1MinMatches) return tooFewLocal();
 
   // A homography fitted to a neighbourhood extrapolates with an error that grows with the

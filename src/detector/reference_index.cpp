@@ -14,7 +14,6 @@ namespace {
 
 using Vec2 = Eigen::Vector2d;
 constexpr int kDim = 128;
-constexpr int kStoredNeighbours = 200;  // neighbour list length (small ones get skipped)
 
 Vec2 pt(const cv::KeyPoint& k) { return Vec2(k.pt.x, k.pt.y); }
 
@@ -88,9 +87,12 @@ ReferenceIndex buildReferenceIndex(Features f, const std::vector<Vec2>& polygon,
   for (int i = 0; i < n; ++i) {
     for (int j = 0; j < n; ++j)
       d[j] = {(pt(ri.features.keypoints[i]) - pt(ri.features.keypoints[j])).squaredNorm() + (i == j ? -1 : 0), j};
-    const int k = std::min(n, kStoredNeighbours);
-    std::partial_sort(d.begin(), d.begin() + k, d.end());
-    for (int q = 0; q < k; ++q) ri.neighbours[i].push_back(d[q].second);
+    // Every feature, nearest first: a far (small) instance shows only the coarse features, which
+    // can lie beyond the nearest few hundred; the local search skips the undetectable ones and
+    // counts only those it tries.
+    std::sort(d.begin(), d.end());
+    ri.neighbours[i].reserve(static_cast<size_t>(n));
+    for (int q = 0; q < n; ++q) ri.neighbours[i].push_back(d[q].second);
   }
   return ri;
 }

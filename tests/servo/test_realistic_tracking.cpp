@@ -3,7 +3,7 @@
 // defined by a *photograph* of it (taken at 30 deg under other light, its region traced as a
 // polygon: what make_reference is given); the sequence comes through another camera with its own
 // look (gain, gamma, gradient, vignetting, noise per frame, JPEG) while the camera backs away to
-// 2.6 m at up to 50 deg and comes back. Ground truth from the renderer.
+// 3.4 m at up to 60 deg and comes back. Ground truth from the renderer.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -68,7 +68,7 @@ TEST(RealisticTracking, APoseOnNearlyEveryFrameWhereDetectionFindsAboutHalf) {
   servo::PoseReplay tracked(det, {}, servo::planarTrackerFactory({}, &det)), detect_only(det, no_track);
   std::string modes, modes_b;
   int poses = 0, poses_b = 0, in_view = 0, good = 0, good_b = 0;
-  double worst_rot = 0, worst_trans = 0;
+  double worst_rot = 0, worst_trans = 0, worst_rot_b = 0, worst_trans_b = 0;
   for (size_t k = 0; k < seq.mono.size(); ++k) {
     const servo::ObjectFrame a = tracked.process(static_cast<int64_t>(k), seq.mono[k], seq.camera).objects[0];
     const servo::ObjectFrame b = detect_only.process(static_cast<int64_t>(k), seq.mono[k], seq.camera).objects[0];
@@ -93,17 +93,22 @@ TEST(RealisticTracking, APoseOnNearlyEveryFrameWhereDetectionFindsAboutHalf) {
     if (b.cMo) {
       ++poses_b;
       good_b += ok(b.cMo, &rot, &trans);
+      worst_rot_b = std::max(worst_rot_b, rot);
+      worst_trans_b = std::max(worst_trans_b, trans);
     }
   }
   std::printf("tracked:  %s\n  %d confirmed poses, %d within 2 deg and 2 %% (worst %.2f deg, %.2f %%)\n"
-              "no-track: %s\n  %d poses, %d within 2 deg and 2 %%; %d frames in full view\n",
+              "no-track: %s\n  %d poses, %d within 2 deg and 2 %% (worst %.2f deg, %.2f %%); %d frames in full view\n",
               modes.c_str(), poses, good, worst_rot, 100 * worst_trans, modes_b.c_str(), poses_b, good_b,
-              in_view);
+              worst_rot_b, 100 * worst_trans_b, in_view);
   EXPECT_EQ(in_view, 120);
-  // The data: single-frame detection finds about half (61 measured), correctly.
-  EXPECT_LE(poses_b, 72);
-  EXPECT_GE(poses_b, 48);
-  EXPECT_GE(good_b, poses_b - 2);
+  // The data: single-frame detection gives a correct pose on about half the frames (63 of 68
+  // poses measured; the other 5 are the far views' mirror pose, 90 deg off with the right
+  // position: the planar ambiguity a single frame cannot resolve, which is why the robot's
+  // pipeline confirms and then tracks).
+  EXPECT_LE(good_b, 72);
+  EXPECT_GE(good_b, 48);
+  EXPECT_GE(good_b, poses_b - 8);
   // Tracking: a confirmed pose on nearly every frame (119 measured: all but the first, which
   // waits for the confirming detection), within the realistic sets' 2 deg and 2 % (119 of 119;
   // above, every one within 3 deg and 3 %).
