@@ -53,6 +53,7 @@ void GraspOptions::check() const {
   check(finiteIn(max_estimate_age_s, 1e-3, 10), o + "max_estimate_age_s", "must be in (0, 10]");
   check(finiteIn(reacquire_timeout_s, 0, 60), o + "reacquire_timeout_s", "must be in [0, 60]");
   check(max_searches >= 1 && max_searches <= 100, o + "max_searches", "must be in [1, 100]");
+  check(finiteIn(unreachable_patience_s, 0, 60), o + "unreachable_patience_s", "must be in [0, 60]");
   for (const auto& [name, v] : {std::pair<const char*, double>{"search_timeout_s", search_timeout_s},
                                 {"approach_timeout_s", approach_timeout_s},
                                 {"align_timeout_s", align_timeout_s},
@@ -130,6 +131,7 @@ void GraspController::enter(GraspPhase p, Seconds t, const std::string& outcome,
   phase_start_ = t;
   detail_.clear();
   lost_since_.reset();
+  unreachable_since_.reset();
   it->event = std::string(toString(p)) + " (" + outcome + ")";
   report_.phases[toString(p)].outcome.clear();
   if (p == GraspPhase::kSearch) {
@@ -337,10 +339,21 @@ void GraspController::decideApproach(Seconds t, GraspIteration* it) {
   if (!targetUsable(t, it)) return;
   const Pose wMg = *wMo_ * oMg_;
   const Pose wMed = wMg * along(-opt_.pregrasp_distance_m);
-  goal_ = baseGoalFor(arm_task_.kinematics(), wMed, goal_ ? goal_->reach.q : Eigen::VectorXd());
-  if (!goal_->reach.ok) {
-    finish(false, "unreachable", at("no arm configuration reaches the pre-grasp pose", t), t, it);
-    return;
+  BaseGoal g = baseGoalFor(arm_task_.kinematics(), wMed, goal_ ? goal_->reach.q : Eigen::VectorXd());
+  if (g.reach.ok) {
+    unreachable_since_.reset();
+    goal_ = std::move(g);
+  } else {
+    if (!unreachable_since_) unreachable_since_ = t;
+    if (t - *unreachable_since_ >= opt_.unreachable_patience_s) {
+      finish(false, "unreachable", at("no arm configuration reaches the pre-grasp pose", t), t, it);
+      return;
+    }
+    if (!goal_) {  // nothing reachable yet: hold still and look again
+      stopMotion();
+      detail_ = "unreachable";
+      return;
+    }
   }
   const Pose wMb_now = wMb();
   const BaseCommand b = base_task_.approach(wMb_now, goal_->wMb);

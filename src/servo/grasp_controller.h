@@ -79,6 +79,11 @@ struct GraspOptions {
   double reacquire_timeout_s = 2.0;  ///< lost target: hold still this long, then search again
   int max_searches = 3;              ///< searches in one run (the first included)
 
+  /// The approach gives up as "unreachable" only when no arm configuration reaches the
+  /// pre-grasp pose of any estimate for this long (one poor estimate, e.g. a far view's tilt
+  /// error, must not end the run); meanwhile the robot holds still (or keeps the last
+  /// reachable goal).
+  double unreachable_patience_s = 1.0;
   double search_timeout_s = 60;
   double approach_timeout_s = 30;
   double align_timeout_s = 15;
@@ -207,6 +212,7 @@ class GraspController {
 
   // Phase state.
   std::optional<BaseGoal> goal_;
+  std::optional<Seconds> unreachable_since_;  ///< approach: first estimate in a row without a reach
   Seconds grasp_started_ = 0;
   std::string grasp_step_;
   Seconds step_started_ = 0;

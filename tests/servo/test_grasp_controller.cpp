@@ -31,7 +31,7 @@ std::string scenarioPath(const std::string& name) {
 struct FaultyEstimator : servo::TargetEstimator {
   servo::OracleEstimator inner;
   std::function<bool(const robot::StereoFrame&)> when;
-  enum class Fault { kLost, kThrow } fault = Fault::kLost;
+  enum class Fault { kLost, kThrow, kTilted } fault = Fault::kLost;
   int faults = 0;
   FaultyEstimator(const detector::ObjectModel& o, Fault f) : inner(o), fault(f) {}
   servo::TargetObservation observe(const robot::StereoFrame& frame, const StereoRig& rig,
@@ -39,6 +39,11 @@ struct FaultyEstimator : servo::TargetEstimator {
     if (when && when(frame)) {
       ++faults;
       if (fault == Fault::kThrow) throw std::runtime_error("injected estimator failure");
+      if (fault == Fault::kTilted) {  // a confirmed pose 70 deg off about the face's x axis
+        servo::TargetObservation o = inner.observe(frame, rig, prior);
+        if (o.cMo) o.cMo = *o.cMo * Pose(axisAngle(Eigen::Vector3d::UnitX(), 70 * M_PI / 180), Eigen::Vector3d::Zero());
+        return o;
+      }
       servo::TargetObservation o;
       o.status = servo::TargetStatus::kLost;
       return o;
@@ -287,6 +292,9 @@ TEST(GraspController, BadOptionsThrowNamingTheField) {
   o = {};
   o.head.gain.at_zero = 0;
   expectThrow(o, "HeadPointingOptions.gain.at_zero");
+  o = {};
+  o.unreachable_patience_s = std::nan("");
+  expectThrow(o, "GraspOptions.unreachable_patience_s");
 }
 
 namespace {
@@ -339,5 +347,47 @@ TEST(GraspController, CameraErrorsAndUnusableFramesStopTheRobot) {
     EXPECT_TRUE(isStopped(robot.lastCommand()));
     EXPECT_EQ(ctl.step(t, dt).error, s.error);
     EXPECT_TRUE(isStopped(robot.lastCommand()));
+  }
+}
+
+// One poor estimate must not end the run: the estimates that confirm the target and start the
+// approach are tilted 70 deg (no arm configuration reaches that pre-grasp pose) until 0.5 s into
+// the approach; the robot holds still meanwhile (no target-driven motion towards an unreachable
+// goal), then approaches with the right estimates and grasps. Tilted for good, the approach
+// ends "unreachable" after unreachable_patience_s, the robot stopped.
+TEST(GraspController, AnUnreachableEstimateEndsTheRunOnlyWhenItPersists) {
+  const Target target = loadTarget(scenarioPath("table_single"));
+  for (const bool for_good : {false, true}) {
+    FaultyEstimator est(target.object, FaultyEstimator::Fault::kTilted);
+    Seconds approach_at = -1;
+    est.when = [&](const robot::StereoFrame& f) {
+      return for_good || approach_at < 0 || f.stamp < approach_at + 0.5;
+    };
+    int waiting = 0, moving_while_waiting = 0;
+    const auto hook = [&](const servo::GraspStep& s, const sim::SimEnon&) {
+      const servo::GraspIteration& it = s.it;
+      if (approach_at < 0 && it.phase == servo::GraspPhase::kApproach) approach_at = it.t;
+      if (it.detail == "unreachable") {
+        ++waiting;
+        if (!isStopped(it.command)) ++moving_while_waiting;
+      }
+      return true;
+    };
+    servo::GraspOptions o;
+    const GraspRun r = runGrasp(target, est, o, 60, false, hook);
+    std::printf("%s: %d steps waiting for a reachable estimate, outcome %s\n", for_good ? "tilted for good" : "tilted 0.5 s",
+                waiting, r.report.success ? "grasped" : r.report.failure.c_str());
+    ASSERT_GT(approach_at, 0);
+    EXPECT_GT(waiting, 5);
+    EXPECT_EQ(moving_while_waiting, 0);
+    EXPECT_TRUE(r.violations.empty()) << r.violations.front();
+    if (for_good) {
+      EXPECT_FALSE(r.report.success);
+      EXPECT_EQ(r.report.phases.at("approach").outcome, "unreachable");
+      EXPECT_GE(r.report.phases.at("approach").time_s, o.unreachable_patience_s);
+      EXPECT_LT(r.report.phases.at("approach").time_s, o.unreachable_patience_s + 0.2);
+    } else {
+      EXPECT_TRUE(r.report.success) << r.report.failure;
+    }
   }
 }
