@@ -6,6 +6,9 @@
 // removes that bias. Keypoint angle is OpenCV's (degrees, measured in image coordinates from +u
 // towards +v); size is the diameter of the keypoint neighbourhood in pixels.
 #include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
+#include <utility>
 #include <opencv2/core.hpp>
 #include <vector>
 
@@ -77,6 +80,12 @@ class GridIndex {
   GridIndex(const std::vector<cv::KeyPoint>& kps, cv::Size image_size, int cell_px = 16);
   /// Appends (after clearing *out) the indices i with |kps[i].pt - centre| <= radius_px.
   void radiusSearch(const Eigen::Vector2d& centre, double radius_px, std::vector<int>* out) const;
+  /// Replaces *out with the k indices i with accept(i), nearest to keypoint `self` first (ties by
+  /// index, `self` before every other point at distance 0): exactly the first k of a full sort by
+  /// (squared distance, index) filtered by accept. Walks the cells in rings around `self` and
+  /// stops once k accepted points lie closer than every unvisited cell.
+  template <class Accept>
+  void nearest(int self, int k, Accept accept, std::vector<int>* out) const;
   int cellPx() const { return cell_px_; }
 
  private:
@@ -85,5 +94,49 @@ class GridIndex {
   std::vector<int> cell_start_;   ///< CSR: indices of cell c are order_[cell_start_[c] .. cell_start_[c+1])
   std::vector<int> order_;
 };
+
+template <class Accept>
+void GridIndex::nearest(int self, int k, Accept accept, std::vector<int>* out) const {
+  out->clear();
+  const int n = static_cast<int>(x_.size());
+  if (self < 0 || self >= n || k <= 0) return;
+  const double x = x_[self], y = y_[self];
+  const int cx = std::clamp(static_cast<int>(std::floor(x / cell_px_)), 0, cols_ - 1);
+  const int cy = std::clamp(static_cast<int>(std::floor(y / cell_px_)), 0, rows_ - 1);
+  std::vector<std::pair<double, int>> cand;  // (squared distance, index)
+  cand.reserve(static_cast<size_t>(4 * k));
+  auto visit = [&](int gx, int gy) {
+    const int c = gy * cols_ + gx;
+    for (int q = cell_start_[c]; q < cell_start_[c + 1]; ++q) {
+      const int i = order_[q];
+      if (!accept(i)) continue;
+      const double dx = x_[i] - x, dy = y_[i] - y;
+      cand.emplace_back(dx * dx + dy * dy + (i == self ? -1.0 : 0.0), i);
+    }
+  };
+  const int last_ring = std::max({cx, cols_ - 1 - cx, cy, rows_ - 1 - cy});
+  for (int ring = 0; ring <= last_ring; ++ring) {
+    for (int gy = cy - ring; gy <= cy + ring; ++gy) {
+      if (gy < 0 || gy >= rows_) continue;
+      const bool edge_row = gy == cy - ring || gy == cy + ring;
+      for (int gx = cx - ring; gx <= cx + ring; gx += (edge_row || ring == 0) ? 1 : 2 * ring)
+        if (gx >= 0 && gx < cols_) visit(gx, gy);
+    }
+    if (static_cast<int>(cand.size()) < k) continue;
+    // Unvisited points lie outside the visited square of cells (clamping into border cells keeps
+    // that true), so every candidate strictly closer than its border is final.
+    const double safe = std::min({x - (cx - ring) * static_cast<double>(cell_px_),
+                                  (cx + ring + 1) * static_cast<double>(cell_px_) - x,
+                                  y - (cy - ring) * static_cast<double>(cell_px_),
+                                  (cy + ring + 1) * static_cast<double>(cell_px_) - y});
+    int final_count = 0;
+    for (const auto& c : cand) final_count += (safe > 0 && c.first < safe * safe) ? 1 : 0;
+    if (final_count >= k) break;
+  }
+  const size_t m = std::min(cand.size(), static_cast<size_t>(k));
+  std::partial_sort(cand.begin(), cand.begin() + static_cast<std::ptrdiff_t>(m), cand.end());
+  out->reserve(m);
+  for (size_t q = 0; q < m; ++q) out->push_back(cand[q].second);
+}
 
 }  // namespace refgrasp::detector

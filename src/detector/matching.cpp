@@ -349,9 +349,15 @@ bool evaluateHypothesis(const Context& cx, int r, int s, Candidate* out) {
     return false;
   };
   std::vector<LocalMatch> m;
-  localSearch(cx, sim, &cx.ref.neighbours[r], simRadius, &m, kQuickNeighbours);
+  // r's nearest reference features that are detectable at this scale: a far (small) instance
+  // shows only the coarse features, which can lie beyond the nearest few hundred.
+  auto detectable = [&](int i) { return rk[i].size * sim.dscale >= cx.min_scene_size; };
+  std::vector<int> near;
+  cx.ref.neighbours.nearest(r, kQuickNeighbours, detectable, &near);
+  localSearch(cx, sim, &near, simRadius, &m);
   if (static_cast<int>(m.size()) < kQuickMinMatches) return tooFewLocal();
-  localSearch(cx, sim, &cx.ref.neighbours[r], simRadius, &m, kPass1Neighbours);
+  cx.ref.neighbours.nearest(r, kPass1Neighbours, detectable, &near);
+  localSearch(cx, sim, &near, simRadius, &m);
   if (static_cast<int>(m.size()) < kPass1MinMatches) return tooFewLocal();
 
   // A homography fitted to a neighbourhood extrapolates with an error that grows with the

@@ -15,8 +15,6 @@ namespace {
 using Vec2 = Eigen::Vector2d;
 constexpr int kDim = 128;
 
-Vec2 pt(const cv::KeyPoint& k) { return Vec2(k.pt.x, k.pt.y); }
-
 }  // namespace
 
 ReferenceIndex buildReferenceIndex(Features f, const std::vector<Vec2>& polygon,
@@ -81,19 +79,11 @@ ReferenceIndex buildReferenceIndex(Features f, const std::vector<Vec2>& polygon,
     ri.feature_hull_area_px2 = cv::contourArea(fh);
   }
 
+  // About 8 features a cell: a nearest-first walk then visits few cells (O(n) memory, O(n) build).
   const int n = ri.features.size();
-  ri.neighbours.resize(n);
-  std::vector<std::pair<double, int>> d(n);
-  for (int i = 0; i < n; ++i) {
-    for (int j = 0; j < n; ++j)
-      d[j] = {(pt(ri.features.keypoints[i]) - pt(ri.features.keypoints[j])).squaredNorm() + (i == j ? -1 : 0), j};
-    // Every feature, nearest first: a far (small) instance shows only the coarse features, which
-    // can lie beyond the nearest few hundred; the local search skips the undetectable ones and
-    // counts only those it tries.
-    std::sort(d.begin(), d.end());
-    ri.neighbours[i].reserve(static_cast<size_t>(n));
-    for (int q = 0; q < n; ++q) ri.neighbours[i].push_back(d[q].second);
-  }
+  const double area = std::max(1.0, static_cast<double>(f.image_size.area()));
+  const int cell_px = static_cast<int>(std::clamp(std::sqrt(area * 8.0 / std::max(1, n)), 4.0, 256.0));
+  ri.neighbours = GridIndex(ri.features.keypoints, f.image_size, cell_px);
   return ri;
 }
 

@@ -21,7 +21,7 @@ struct ReferenceIndex {
   Eigen::Vector2d centre_px = Eigen::Vector2d::Zero();  ///< pattern centre c_r (polygon centroid)
   double diagonal_px = 0;                     ///< diagonal of the polygon's bounding box
   double feature_hull_area_px2 = 0;           ///< area of the convex hull of the kept features
-  std::vector<std::vector<int>> neighbours;   ///< per feature: every feature by distance (reference px), self first
+  GridIndex neighbours;                       ///< features.keypoints for nearest-first queries (reference px)
   IntegerDescriptors descriptors;             ///< features.descriptors for the kernels (byte split)
 };
 

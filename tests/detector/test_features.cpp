@@ -204,5 +204,47 @@ TEST(GridIndex, RadiusSearchEqualsBruteForce) {
   EXPECT_TRUE(got.empty());
 }
 
+TEST(GridIndex, NearestEqualsAFilteredFullSort) {
+  // The matcher's neighbour order: the first k by (squared distance, index), self first, among
+  // the points a size filter accepts. Points outside the image, exact duplicates, every cell size.
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<float> x(-30, 670), y(-30, 510), size(1.f, 40.f);
+  std::vector<cv::KeyPoint> kps;
+  for (int i = 0; i < 1200; ++i) kps.emplace_back(x(rng), y(rng), size(rng));
+  for (int i = 0; i < 50; ++i) kps.push_back(kps[static_cast<size_t>(i) * 7]);  // duplicates
+  kps.emplace_back(-300.f, 900.f, 30.f);                                       // far outside
+  const int n = static_cast<int>(kps.size());
+  std::uniform_int_distribution<int> pick(0, n - 1);
+  int checked = 0;
+  for (int cell : {1, 5, 16, 37, 1000}) {
+    const GridIndex grid(kps, cv::Size(640, 480), cell);
+    std::vector<int> got;
+    for (int q = 0; q < 120; ++q) {
+      const int self = q == 0 ? n - 1 : pick(rng);
+      const float min_size = q % 3 == 0 ? 0.f : (q % 3 == 1 ? 20.f : 38.f);
+      auto accept = [&](int i) { return kps[i].size >= min_size; };
+      std::vector<std::pair<double, int>> all;
+      for (int i = 0; i < n; ++i) {
+        if (!accept(i)) continue;
+        const double dx = static_cast<double>(kps[i].pt.x) - kps[self].pt.x;
+        const double dy = static_cast<double>(kps[i].pt.y) - kps[self].pt.y;
+        all.emplace_back(dx * dx + dy * dy + (i == self ? -1.0 : 0.0), i);
+      }
+      std::sort(all.begin(), all.end());
+      for (int k : {1, 40, 200, 5000}) {
+        grid.nearest(self, k, accept, &got);
+        std::vector<int> want;
+        for (int j = 0; j < std::min(k, static_cast<int>(all.size())); ++j) want.push_back(all[j].second);
+        ASSERT_EQ(got, want) << "cell " << cell << " self " << self << " k " << k << " min size " << min_size;
+        ++checked;
+      }
+    }
+  }
+  EXPECT_EQ(checked, 5 * 120 * 4);
+  std::vector<int> got{1};
+  GridIndex({}, cv::Size(640, 480)).nearest(0, 5, [](int) { return true; }, &got);
+  EXPECT_TRUE(got.empty());
+}
+
 }  // namespace
 }  // namespace refgrasp::detector
