@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <climits>
+#include <cstring>
 
 #if defined(__x86_64__) || defined(__i386__)
 #include <immintrin.h>
@@ -87,70 +88,89 @@ __attribute__((target("avx2"))) void knnRowsAvx2(const cv::Mat& S, const std::ve
 #endif
 
 #ifdef REFGRASP_HAVE_X86
-// Eight scene rows per lane group; each reference row is one pass. Dot products with the 8-bit
-// VNNI instruction (u8 scene x s8 reference, exact int32 sums); the nearest/second-nearest
-// bookkeeping is vectorised across the eight scene rows.
-__attribute__((target("avx2,avx512f,avx512vl,avx512bw,avx512vnni"))) void knnBlocksVnni(
-    const cv::Mat& S8, const std::vector<int>& sn2, const IntegerDescriptors& ref, int b0, int b1, NearestTwo* out) {
-  const int ns = S8.rows, nr = ref.lo_s8.rows;
-  alignas(32) uint8_t pad[8][kDim];
-  for (int blk = b0; blk < b1; ++blk) {
-    const int i0 = blk * 8;
-    const uint8_t* rows[8];
-    for (int q = 0; q < 8; ++q) {
-      if (i0 + q < ns) {
-        rows[q] = S8.ptr<uint8_t>(i0 + q);
-      } else {
-        std::fill(pad[q], pad[q] + kDim, 0);
-        rows[q] = pad[q];
-      }
+// AVX-512 VNNI: 16 reference rows in the lanes of a register, four scene rows at a time. The
+// reference is stored transposed (IntegerDescriptors::t_u8: per block of 16 rows and group of 4
+// dimensions, the 4 bytes of each row), the scene as s8 values - 128, so one vpdpbusd adds 4
+// exact products of 16 pairs: sum_k r[k] (s[k] - 128) = r.s - 128 sum_k r[k], and
+// |s - r|^2 = |s|^2 + bias_r - 2 * that sum with bias_r = |r|^2 - 256 sum_k r[k] (exact int32).
+// Each lane keeps the nearest and second nearest of its rows (strictly closer wins: the first
+// index among equals, as the scalar loop); the 16 lanes are merged by (distance, index).
+__attribute__((target("avx2,avx512f,avx512bw,avx512vnni"))) void knnVnni512(
+    const cv::Mat& S8, const std::vector<int>& sn2, const IntegerDescriptors& ref, int g0, int g1,
+    NearestTwo* out) {
+  const int ns = S8.rows, nr = ref.s16.rows, nblk = ref.t_rows / 16;
+  constexpr int kBlockBytes = 16 * kDim;
+  alignas(64) int8_t pad[kDim];
+  std::fill(pad, pad + kDim, 0);
+  alignas(64) int st_d1[4][16], st_d2[4][16], st_b1[4][16], st_b2[4][16];
+  const __m512i iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
+  for (int g = g0; g < g1; ++g) {
+    const int8_t* srow[4];
+    __m512i sn[4];
+    for (int q = 0; q < 4; ++q) {
+      const int i = 4 * g + q;
+      srow[q] = i < ns ? S8.ptr<int8_t>(i) : pad;
+      sn[q] = _mm512_set1_epi32(i < ns ? sn2[i] : 0);
+      _mm512_store_si512(st_d1[q], _mm512_set1_epi32(INT_MAX));
+      _mm512_store_si512(st_d2[q], _mm512_set1_epi32(INT_MAX));
+      _mm512_store_si512(st_b1[q], _mm512_set1_epi32(-1));
+      _mm512_store_si512(st_b2[q], _mm512_set1_epi32(-1));
     }
-    alignas(32) int n2[8];
-    for (int q = 0; q < 8; ++q) n2[q] = i0 + q < ns ? sn2[i0 + q] : 0;
-    const __m256i sn = _mm256_load_si256(reinterpret_cast<const __m256i*>(n2));
-    __m256i d1 = _mm256_set1_epi32(INT_MAX), d2 = _mm256_set1_epi32(INT_MAX);
-    __m256i best = _mm256_set1_epi32(-1), second = _mm256_set1_epi32(-1);
-    for (int j = 0; j < nr; ++j) {
-      const __m256i* lo = reinterpret_cast<const __m256i*>(ref.lo_s8.ptr<int8_t>(j));
-      const __m256i l0 = _mm256_loadu_si256(lo), l1 = _mm256_loadu_si256(lo + 1),
-                    l2 = _mm256_loadu_si256(lo + 2), l3 = _mm256_loadu_si256(lo + 3);
-      __m256i acc[8];
-      for (int q = 0; q < 8; ++q) {
-        const __m256i* s = reinterpret_cast<const __m256i*>(rows[q]);
-        __m256i a = _mm256_dpbusd_epi32(_mm256_setzero_si256(), _mm256_loadu_si256(s), l0);
-        a = _mm256_dpbusd_epi32(a, _mm256_loadu_si256(s + 1), l1);
-        a = _mm256_dpbusd_epi32(a, _mm256_loadu_si256(s + 2), l2);
-        acc[q] = _mm256_dpbusd_epi32(a, _mm256_loadu_si256(s + 3), l3);
-      }
-      if (ref.has_hi[j]) {
-        const __m256i* hi = reinterpret_cast<const __m256i*>(ref.hi_s8.ptr<int8_t>(j));
-        for (int q = 0; q < 8; ++q) {
-          const __m256i* s = reinterpret_cast<const __m256i*>(rows[q]);
-          __m256i a = _mm256_setzero_si256();
-          for (int k = 0; k < 4; ++k) a = _mm256_dpbusd_epi32(a, _mm256_loadu_si256(s + k), _mm256_loadu_si256(hi + k));
-          acc[q] = _mm256_add_epi32(acc[q], _mm256_slli_epi32(a, 7));
+    for (int rb = 0; rb < nblk; rb += 4) {  // t_rows is a multiple of 64
+      const uint8_t* base = ref.t_u8.data() + static_cast<size_t>(rb) * kBlockBytes;
+      __m512i acc[4][4];
+      for (int q = 0; q < 4; ++q)
+        for (int b = 0; b < 4; ++b) acc[q][b] = _mm512_setzero_si512();
+      for (int k = 0; k < kDim / 4; ++k) {
+        __m512i r[4];
+        for (int b = 0; b < 4; ++b) r[b] = _mm512_loadu_si512(base + b * kBlockBytes + k * 64);
+        for (int q = 0; q < 4; ++q) {
+          int32_t word;
+          std::memcpy(&word, srow[q] + 4 * k, 4);
+          const __m512i sv = _mm512_set1_epi32(word);
+          for (int b = 0; b < 4; ++b) acc[q][b] = _mm512_dpbusd_epi32(acc[q][b], r[b], sv);
         }
       }
-      const __m256i h01 = _mm256_hadd_epi32(acc[0], acc[1]), h23 = _mm256_hadd_epi32(acc[2], acc[3]);
-      const __m256i h45 = _mm256_hadd_epi32(acc[4], acc[5]), h67 = _mm256_hadd_epi32(acc[6], acc[7]);
-      const __m256i h03 = _mm256_hadd_epi32(h01, h23), h47 = _mm256_hadd_epi32(h45, h67);
-      const __m256i dot = _mm256_add_epi32(_mm256_permute2x128_si256(h03, h47, 0x20),
-                                           _mm256_permute2x128_si256(h03, h47, 0x31));
-      const __m256i d = _mm256_sub_epi32(_mm256_add_epi32(sn, _mm256_set1_epi32(ref.norm2[j])),
-                                         _mm256_slli_epi32(dot, 1));
-      const __m256i closer = _mm256_cmpgt_epi32(d1, d), closer2 = _mm256_cmpgt_epi32(d2, d);
-      const __m256i jv = _mm256_set1_epi32(j);
-      second = _mm256_blendv_epi8(_mm256_blendv_epi8(second, jv, closer2), best, closer);
-      d2 = _mm256_blendv_epi8(_mm256_min_epi32(d2, d), d1, closer);
-      best = _mm256_blendv_epi8(best, jv, closer);
-      d1 = _mm256_min_epi32(d1, d);
+      for (int q = 0; q < 4; ++q) {
+        __m512i d1 = _mm512_load_si512(st_d1[q]), d2 = _mm512_load_si512(st_d2[q]);
+        __m512i b1 = _mm512_load_si512(st_b1[q]), b2 = _mm512_load_si512(st_b2[q]);
+        for (int b = 0; b < 4; ++b) {
+          const int j0 = (rb + b) * 16;
+          const __m512i d = _mm512_sub_epi32(_mm512_add_epi32(sn[q], _mm512_loadu_si512(ref.bias.data() + j0)),
+                                             _mm512_add_epi32(acc[q][b], acc[q][b]));
+          const __m512i jv = _mm512_add_epi32(_mm512_set1_epi32(j0), iota);
+          const __mmask16 c1 = _mm512_cmplt_epi32_mask(d, d1), c2 = _mm512_cmplt_epi32_mask(d, d2);
+          b2 = _mm512_mask_blend_epi32(c1, _mm512_mask_blend_epi32(c2, b2, jv), b1);
+          d2 = _mm512_mask_blend_epi32(c1, _mm512_mask_blend_epi32(c2, d2, d), d1);
+          b1 = _mm512_mask_blend_epi32(c1, b1, jv);
+          d1 = _mm512_mask_blend_epi32(c1, d1, d);
+        }
+        _mm512_store_si512(st_d1[q], d1);
+        _mm512_store_si512(st_d2[q], d2);
+        _mm512_store_si512(st_b1[q], b1);
+        _mm512_store_si512(st_b2[q], b2);
+      }
     }
-    alignas(32) int vb[8], vs[8], v1[8], v2[8];
-    _mm256_store_si256(reinterpret_cast<__m256i*>(vb), best);
-    _mm256_store_si256(reinterpret_cast<__m256i*>(vs), second);
-    _mm256_store_si256(reinterpret_cast<__m256i*>(v1), d1);
-    _mm256_store_si256(reinterpret_cast<__m256i*>(v2), d2);
-    for (int q = 0; q < 8 && i0 + q < ns; ++q) out[i0 + q] = {vb[q], v1[q], v2[q], vs[q]};
+    for (int q = 0; q < 4 && 4 * g + q < ns; ++q) {
+      NearestTwo nn;
+      auto offer = [&](int d, int j) {  // (d, j) ordered lexicographically, padding rows skipped
+        if (j < 0 || j >= nr) return;
+        if (d < nn.d1 || (d == nn.d1 && j < nn.best)) {
+          nn.d2 = nn.d1;
+          nn.second = nn.best;
+          nn.d1 = d;
+          nn.best = j;
+        } else if (d < nn.d2 || (d == nn.d2 && j < nn.second)) {
+          nn.d2 = d;
+          nn.second = j;
+        }
+      };
+      for (int l = 0; l < 16; ++l) {
+        offer(st_d1[q][l], st_b1[q][l]);
+        offer(st_d2[q][l], st_b2[q][l]);
+      }
+      out[4 * g + q] = nn;
+    }
   }
 }
 #endif
@@ -158,7 +178,7 @@ __attribute__((target("avx2,avx512f,avx512vl,avx512bw,avx512vnni"))) void knnBlo
 bool cpuHas(KnnKernel k) {
 #ifdef REFGRASP_HAVE_X86
   static const bool avx2 = __builtin_cpu_supports("avx2");
-  static const bool vnni = __builtin_cpu_supports("avx512vnni") && __builtin_cpu_supports("avx512vl") &&
+  static const bool vnni = __builtin_cpu_supports("avx512vnni") && __builtin_cpu_supports("avx512f") &&
                            __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx2");
   if (k == KnnKernel::kAvx2) return avx2;
   if (k == KnnKernel::kVnni) return vnni;
@@ -188,16 +208,20 @@ IntegerDescriptors integerDescriptors(const cv::Mat& desc, bool byte_split) {
     d.norm2[i] = s;
   }
   if (!byte_split) return d;
-  d.lo_s8.create(d.s16.size(), CV_8S);
-  d.hi_s8.create(d.s16.size(), CV_8S);
-  d.has_hi.assign(d.s16.rows, 0);
-  for (int i = 0; i < d.s16.rows; ++i)
+  const int n = d.s16.rows;
+  d.t_rows = (n + 63) / 64 * 64;
+  d.t_u8.assign(static_cast<size_t>(d.t_rows) * kDim, 0);
+  d.bias.assign(d.t_rows, 1 << 30);  // padding rows: farther than any real one (<= 2^25)
+  for (int i = 0; i < n; ++i) {
+    const int16_t* r = d.s16.ptr<int16_t>(i);
+    int sum = 0;
     for (int k = 0; k < kDim; ++k) {
-      const int v = d.s16.at<int16_t>(i, k);
-      d.lo_s8.at<int8_t>(i, k) = static_cast<int8_t>(v & 127);
-      d.hi_s8.at<int8_t>(i, k) = static_cast<int8_t>(v >> 7);
-      d.has_hi[i] |= v >= 128;
+      const int v = std::clamp<int>(r[k], 0, 255);
+      sum += v;
+      d.t_u8[static_cast<size_t>(i / 16) * 16 * kDim + (k / 4) * 64 + (i % 16) * 4 + k % 4] = static_cast<uint8_t>(v);
     }
+    d.bias[i] = d.norm2[i] - 256 * sum;
+  }
   return d;
 }
 
@@ -215,15 +239,19 @@ std::vector<NearestTwo> nearestTwo(const IntegerDescriptors& ref, const IntegerD
     kernel = cpuHas(KnnKernel::kVnni) ? KnnKernel::kVnni
              : cpuHas(KnnKernel::kAvx2) ? KnnKernel::kAvx2 : KnnKernel::kScalar;
   }
-  if (kernel == KnnKernel::kVnni && ref.lo_s8.rows != R.rows) kernel = KnnKernel::kAvx2;  // no byte split
+  if (kernel == KnnKernel::kVnni && ref.t_rows < R.rows) kernel = KnnKernel::kAvx2;  // no byte split
   if (!cpuHas(kernel)) kernel = KnnKernel::kScalar;
 #ifdef REFGRASP_HAVE_X86
   if (kernel == KnnKernel::kVnni) {
-    cv::Mat S8;
-    S.convertTo(S8, CV_8U);
-    const int nblocks = (S.rows + 7) / 8;
-    cv::parallel_for_(cv::Range(0, nblocks), [&](const cv::Range& rg) {
-      knnBlocksVnni(S8, sn2, ref, rg.start, rg.end, out.data());
+    cv::Mat S8(S.rows, kDim, CV_8S);
+    for (int i = 0; i < S.rows; ++i) {
+      const int16_t* a = S.ptr<int16_t>(i);
+      int8_t* b = S8.ptr<int8_t>(i);
+      for (int k = 0; k < kDim; ++k) b[k] = static_cast<int8_t>(std::clamp<int>(a[k], 0, 255) - 128);
+    }
+    const int groups = (S.rows + 3) / 4;
+    cv::parallel_for_(cv::Range(0, groups), [&](const cv::Range& rg) {
+      knnVnni512(S8, sn2, ref, rg.start, rg.end, out.data());
     }, 8);
     return out;
   }

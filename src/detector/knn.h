@@ -13,10 +13,13 @@ namespace refgrasp::detector {
 struct IntegerDescriptors {
   cv::Mat s16;             ///< CV_16S, N x 128
   std::vector<int> norm2;  ///< squared L2 norms of the rows
-  /// Exact split for 8-bit dot products (reference side, VNNI): value = lo + 128 * hi with lo in
-  /// [0, 127] and hi in {0, 1}; empty unless made with byte_split.
-  cv::Mat lo_s8, hi_s8;             ///< CV_8S, N x 128
-  std::vector<unsigned char> has_hi;  ///< row has a value >= 128
+  /// Reference side of the AVX-512 VNNI kernel (made with byte_split, else empty): rows padded
+  /// to t_rows (a multiple of 64) with zeros, in blocks of 16 rows; block b, dimension group g
+  /// (4 dimensions) holds at byte (b * 32 + g) * 64 + 4 * lane the 4 values of row 16 b + lane.
+  /// bias[j] = norm2[j] - 256 * sum of row j (padding: 2^30, farther than any real row).
+  std::vector<uint8_t> t_u8;
+  std::vector<int> bias;
+  int t_rows = 0;
   int rows() const { return s16.rows; }
 };
 
@@ -35,7 +38,8 @@ struct NearestTwo {
   int second = -1;          ///< index of the second nearest
 };
 /// Implementations of the global 2-NN; all exact and identical in result. kAuto takes the
-/// fastest the CPU has (AVX-512 VNNI 8-bit dot products, else AVX2, else scalar).
+/// fastest the CPU has (AVX-512 VNNI 8-bit dot products, 16 reference rows a register, else
+/// AVX2, else scalar).
 enum class KnnKernel { kAuto, kScalar, kAvx2, kVnni };
 bool knnKernelAvailable(KnnKernel kernel);
 

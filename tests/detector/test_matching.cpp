@@ -85,6 +85,52 @@ TEST(Matching, NearestTwoIsExact) {
   }
 }
 
+TEST(Matching, NearestTwoKernelsAgreeOnTiesAndOddSizes) {
+  // Values 0..255 including both ends, few distinct values (many equal distances), reference
+  // sizes around the kernels' blocks of 16 and 64 rows, scene sizes not a multiple of 4.
+  std::mt19937_64 rng(5);
+  int compared = 0;
+  for (int nr : {1, 2, 15, 16, 17, 63, 64, 65, 130}) {
+    for (int ns : {1, 3, 5, 37}) {
+      cv::Mat r(nr, 128, CV_32F), s(ns, 128, CV_32F);
+      std::uniform_int_distribution<int> v(0, 3);
+      for (cv::Mat* m : {&r, &s})
+        for (int i = 0; i < m->rows; ++i)
+          for (int k = 0; k < 128; ++k) m->at<float>(i, k) = static_cast<float>(v(rng) * 85);  // 0, 85, 170, 255
+      for (int i = 1; i < nr; i += 3) r.row(i - 1).copyTo(r.row(i));  // exact duplicates
+      for (int i = 16; i < nr; i += 16) r.row(0).copyTo(r.row(i));     // ... in one lane of 16
+      r.row(0).copyTo(s.row(0));                                       // at distance 0
+      const IntegerDescriptors ref = integerDescriptors(r, /*byte_split=*/true);
+      const IntegerDescriptors scene = integerDescriptors(s, /*byte_split=*/false);
+      const auto want = nearestTwo(ref, scene, KnnKernel::kScalar);
+      for (int j = 0; j < ns; ++j) {  // the scalar loop against a full sort by (distance, index)
+        std::vector<std::pair<long, int>> all;
+        for (int i = 0; i < nr; ++i)
+          all.emplace_back(static_cast<long>(cv::norm(s.row(j), r.row(i), cv::NORM_L2SQR)), i);
+        std::sort(all.begin(), all.end());
+        ASSERT_EQ(want[j].best, all[0].second);
+        ASSERT_EQ(want[j].d1, all[0].first);
+        ASSERT_EQ(want[j].second, nr > 1 ? all[1].second : -1);
+        if (nr > 1) {
+          ASSERT_EQ(want[j].d2, all[1].first);
+        }
+      }
+      for (KnnKernel k : {KnnKernel::kAvx2, KnnKernel::kVnni, KnnKernel::kAuto}) {
+        if (!knnKernelAvailable(k)) continue;
+        const auto got = nearestTwo(ref, scene, k);
+        for (int j = 0; j < ns; ++j) {
+          ASSERT_EQ(got[j].best, want[j].best) << "kernel " << static_cast<int>(k) << " nr " << nr << " ns " << ns;
+          ASSERT_EQ(got[j].second, want[j].second) << "kernel " << static_cast<int>(k) << " nr " << nr;
+          ASSERT_EQ(got[j].d1, want[j].d1);
+          ASSERT_EQ(got[j].d2, want[j].d2);
+          ++compared;
+        }
+      }
+    }
+  }
+  EXPECT_GT(compared, 9 * 46);
+}
+
 TEST(Matching, PaperMatcherRecoversHomographyOnRandomPoses) {
   const Intrinsics cam = sceneCamera();
   std::mt19937_64 rng(2024);
