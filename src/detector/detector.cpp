@@ -235,7 +235,7 @@ struct Search {
   ExtractRegion region;  // what the extraction is asked for (roi empty = whole image)
   bool sameExtraction(const Search& o) const {
     return region.roi == o.region.roi && region.min_size_px == o.region.min_size_px &&
-           region.max_size_px == o.region.max_size_px;
+           region.max_size_px == o.region.max_size_px && region.inner_margin_px == o.region.inner_margin_px;
   }
 };
 
@@ -243,7 +243,7 @@ struct Search {
 // by roi_margin, and the reference keypoint sizes scaled by the predicted homography's local
 // scale, widened by scale_margin. False when the pattern is not in front of the camera.
 bool predictRegion(const RegisteredObject& e, const ObjectPrior& p, const Intrinsics& cam,
-                   cv::Rect* roi, double* min_size, double* max_size) {
+                   cv::Rect* roi, double* min_size, double* max_size, double* margin_px) {
   const PlanarTarget& t = *e.model.target;
   std::vector<Eigen::Vector2d> ref(4), und(4);
   Eigen::Vector2d lo(1e300, 1e300), hi(-1e300, -1e300);
@@ -274,6 +274,7 @@ bool predictRegion(const RegisteredObject& e, const ObjectPrior& p, const Intrin
   *max_size = smax * p.scale_margin;
   // Grown by the margin, clamped just outside the image (the caller clips it to the image).
   const double m = p.roi_margin * std::max(hi.x() - lo.x(), hi.y() - lo.y());
+  *margin_px = std::floor(m);
   auto clampX = [&](double x) { return static_cast<int>(std::clamp(x, -1.0, cam.width + 1.0)); };
   auto clampY = [&](double y) { return static_cast<int>(std::clamp(y, -1.0, cam.height + 1.0)); };
   *roi = cv::Rect(cv::Point(clampX(std::floor(lo.x() - m)), clampY(std::floor(lo.y() - m))),
@@ -292,13 +293,16 @@ Search searchFor(const RegisteredObject& e, const ObjectPrior* prior, const Dete
   cv::Rect roi = full;
   if (prior) {
     cv::Rect predicted;
+    double margin_px = 0;
     const bool has_prediction = prior->cMo && e.model.target &&
                                 predictRegion(e, *prior, camera, &predicted, &s.region.min_size_px,
-                                              &s.region.max_size_px);
+                                              &s.region.max_size_px, &margin_px);
     if (prior->roi.area() > 0) {
       roi = prior->roi;
     } else if (has_prediction) {
       roi = predicted;
+      // The pattern lies margin_px inside the region: that much of the crop's context is there.
+      if (!q.roi || (roi & *q.roi) == roi) s.region.inner_margin_px = margin_px;
     }
   }
   if (q.roi) roi &= *q.roi;

@@ -64,9 +64,11 @@ Features extractSiftUnchecked(const cv::Mat& image, const SiftOptions& opt, cons
     return f;
   }
   // cv::SIFT has no ROI: extract on a crop with a margin that keeps the scale space of the
-  // keypoints wanted (their descriptor window spans about 1.5 sizes), then shift back.
+  // keypoints wanted (their descriptor window spans about 1.5 sizes), then shift back. Part of
+  // that context is inside roi already when the keypoints that matter lie inner_margin_px in.
   const double keep = std::min(region.max_size_px, 0.5 * std::max(image.cols, image.rows));
-  const int margin = static_cast<int>(std::ceil(1.5 * keep)) + 8;
+  const double inner = std::isfinite(region.inner_margin_px) ? std::max(0.0, region.inner_margin_px) : 0.0;
+  const int margin = 8 + static_cast<int>(std::ceil(std::max(0.0, 1.5 * keep - inner)));
   // The crop origin is a multiple of 32 px so that every octave samples the same grid as the
   // whole image does (octave o takes every 2^o-th pixel of the doubled image).
   const int x0 = std::max(0, (roi.x - margin) / 32 * 32), y0 = std::max(0, (roi.y - margin) / 32 * 32);

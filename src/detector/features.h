@@ -56,11 +56,15 @@ struct Features {
 /// target). Keypoints are still reported in full-image pixels. An extractor may use the region to
 /// skip work (crop, skip octaves); the result is the full-image extraction restricted to keypoints
 /// whose centre lies in `roi` and whose size lies in [min_size_px, max_size_px], up to border
-/// effects within a few keypoint sizes of the ROI's edge.
+/// effects within a few keypoint sizes of the ROI's edge (plus inner_margin_px).
 struct ExtractRegion {
   cv::Rect roi;                 ///< input-image pixels; empty = the whole image
   double min_size_px = 0;       ///< keypoint size (diameter, input px) range
   double max_size_px = 1e30;
+  /// The region's own margin (px): the keypoints that must come out as in the whole image lie at
+  /// least this far inside roi (e.g. a predicted pattern's box grown by a margin), so the
+  /// context the crop adds around roi for them is reduced by it. 0: every keypoint in roi.
+  double inner_margin_px = 0;
   bool whole() const { return roi.area() == 0 && min_size_px <= 0 && max_size_px >= 1e30; }
 };
 

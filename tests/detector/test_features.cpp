@@ -142,31 +142,40 @@ TEST(Features, RegionOfInterestMatchesTheWholeImage) {
   ExtractRegion region;
   region.roi = cv::Rect(200, 150, 240, 180);
   region.max_size_px = 40;
-  const Features part = extractSift(img, SiftOptions{}, region);
-  ASSERT_GT(part.size(), 50);
-  EXPECT_EQ(part.image_size, img.size());
-  int expected = 0, found = 0, outside = 0;
-  for (const auto& k : part.keypoints)
-    if (!region.roi.contains(cv::Point(cvRound(k.pt.x), cvRound(k.pt.y))) || k.size > 40) ++outside;
-  for (int i = 0; i < all.size(); ++i) {
-    const cv::KeyPoint& ka = all.keypoints[i];
-    const double margin = 1.5 * ka.size;
-    if (ka.size > 40 || ka.pt.x < region.roi.x + margin || ka.pt.y < region.roi.y + margin ||
-        ka.pt.x > region.roi.br().x - margin || ka.pt.y > region.roi.br().y - margin)
-      continue;
-    ++expected;
-    for (int j = 0; j < part.size(); ++j) {
-      const cv::KeyPoint& kb = part.keypoints[j];
-      if (cv::norm(ka.pt - kb.pt) < 0.01 && std::abs(ka.size - kb.size) < 0.01 &&
-          cv::norm(all.descriptors.row(i), part.descriptors.row(j), cv::NORM_L2) < 1.0) {
-        ++found;
-        break;
+  // inner_margin_px: the keypoints that must match lie that much further in, the crop is smaller.
+  int part_size[2] = {0, 0};
+  for (double inner : {0.0, 30.0}) {
+    region.inner_margin_px = inner;
+    const Features part = extractSift(img, SiftOptions{}, region);
+    ASSERT_GT(part.size(), 50);
+    EXPECT_EQ(part.image_size, img.size());
+    part_size[inner > 0] = part.size();
+    int expected = 0, found = 0, outside = 0;
+    for (const auto& k : part.keypoints)
+      if (!region.roi.contains(cv::Point(cvRound(k.pt.x), cvRound(k.pt.y))) || k.size > 40) ++outside;
+    for (int i = 0; i < all.size(); ++i) {
+      const cv::KeyPoint& ka = all.keypoints[i];
+      const double margin = inner + 1.5 * ka.size;
+      if (ka.size > 40 || ka.pt.x < region.roi.x + margin || ka.pt.y < region.roi.y + margin ||
+          ka.pt.x > region.roi.br().x - margin || ka.pt.y > region.roi.br().y - margin)
+        continue;
+      ++expected;
+      for (int j = 0; j < part.size(); ++j) {
+        const cv::KeyPoint& kb = part.keypoints[j];
+        if (cv::norm(ka.pt - kb.pt) < 0.01 && std::abs(ka.size - kb.size) < 0.01 &&
+            cv::norm(all.descriptors.row(i), part.descriptors.row(j), cv::NORM_L2) < 1.0) {
+          ++found;
+          break;
+        }
       }
     }
+    EXPECT_EQ(outside, 0);
+    ASSERT_GT(expected, 30);
+    EXPECT_GE(found, expected * 98 / 100) << found << " of " << expected << ", inner margin " << inner;
   }
-  EXPECT_EQ(outside, 0);
-  ASSERT_GT(expected, 30);
-  EXPECT_GE(found, expected * 98 / 100) << found << " of " << expected;
+  // Every keypoint of the region is still reported (near its edge, from less context).
+  EXPECT_NEAR(part_size[1], part_size[0], 0.1 * part_size[0]);
+  region.inner_margin_px = 0;
 
   region.roi = cv::Rect(700, 500, 10, 10);  // outside the image
   EXPECT_EQ(extractSift(img, SiftOptions{}, region).size(), 0);
