@@ -100,7 +100,7 @@ int main(int argc, char** argv) {
 
   std::mt19937_64 rng(seed);
   std::uniform_real_distribution<double> blur(0.0, 1.5), angle(0, M_PI);
-  Stage t_sift, t_paper, t_ratio, t_ppose, t_rpose, t_whole;
+  Stage t_sift, t_knn, t_paper, t_ratio, t_ppose, t_rpose, t_whole;
   std::vector<double> ratio_whole, ratio_whole_cpu;
   int found = 0, n_features = 0;
   for (int i = 0; i < frames; ++i) {
@@ -117,6 +117,8 @@ int main(int argc, char** argv) {
     f.image = img;  // as DetectorInternals::extract keeps it: the refined pose refines H densely (ECC)
     const GridIndex grid(f.keypoints, f.image_size);
     MatchResult mp, mr;
+    const IntegerDescriptors scene_int = integerDescriptors(f.descriptors, /*byte_split=*/false);
+    t_knn.time([&] { (void)nearestTwo(DetectorInternals::referenceIndex(det, id).descriptors, scene_int); });
     t_paper.time([&] { mp = matchObject(DetectorInternals::referenceIndex(det, id), f, grid, det.options().match); });
     t_ratio.time([&] { mr = matchObject(DetectorInternals::referenceIndex(det, id), f, grid, ratio_opt); });
     if (!mp.instances.empty()) {
@@ -141,6 +143,7 @@ int main(int argc, char** argv) {
   };
   row("SIFT extraction alone", t_sift, 2);
   row("paper matcher", t_paper, 2);
+  row("  of which the global 2-NN", t_knn, 2);
   row("ratio matcher", t_ratio, 2);
   row("paper pose (eq. 7 + LM, 4 corners)", t_ppose, 3);
   row("refined pose (ECC H + IPPE + LM)", t_rpose, 3);

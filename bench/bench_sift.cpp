@@ -301,7 +301,7 @@ int main(int argc, char** argv) {
   rows[kRoiExtractCpu] = {"ROI extraction, CPU time", NAN, NAN, "ms", "-"};
   rows[kRoiDetect] = {"ROI re-detection (pose prior)", NAN, NAN, "ms", "-"};
   rows[kRoiDetectCpu] = {"ROI re-detection, CPU time", NAN, NAN, "ms", "-"};
-  std::vector<double> stage[5], redetect_area, redetect_min, redetect_max;
+  std::vector<double> stage[5], part[4], roi_part[4], redetect_area, redetect_min, redetect_max;
   int features[2] = {0, 0}, found[2] = {0, 0}, stereo_found[2] = {0, 0}, roi_found[2] = {0, 0};
   const int saved_threads = cv::getNumThreads();
   const std::string load_before = loadAverage();
@@ -377,7 +377,16 @@ int main(int argc, char** argv) {
       Detector det1(one);
       const int id1 = det1.addObject(textureObject("target", tex, w));
       std::vector<double> cw, cs, rw, rc;
-      for (int i = 0; i < sample; ++i) cw.push_back(threadCpuMs([&] { det1.detect(data[i].left, cam); }));
+      for (int i = 0; i < sample; ++i) {
+        DetectionResult r;
+        cw.push_back(threadCpuMs([&] { r = det1.detect(data[i].left, cam); }));
+        if (which == 1) {
+          part[0].push_back(r.time_ms.extract);
+          part[1].push_back(r.time_ms.match);
+          part[2].push_back(r.time_ms.pose);
+          part[3].push_back(r.time_ms.total - r.time_ms.extract - r.time_ms.match - r.time_ms.pose);
+        }
+      }
       for (int i = 0; i < sample; ++i)
         cs.push_back(threadCpuMs([&] { det1.detectStereo(data[i].left, data[i].right, rig); }));
       // Re-detection with the tracker's prior: the predicted pose (here the true one) gives the
@@ -391,6 +400,12 @@ int main(int argc, char** argv) {
         DetectionResult r;
         rw.push_back(timeMs([&] { r = det1.detect(data[i].left, cam, {}, q); }));
         rc.push_back(threadCpuMs([&] { det1.detect(data[i].left, cam, {}, q); }));
+        if (which == 1) {
+          roi_part[0].push_back(r.time_ms.extract);
+          roi_part[1].push_back(r.time_ms.match);
+          roi_part[2].push_back(r.time_ms.pose);
+          roi_part[3].push_back(r.time_ms.total - r.time_ms.extract - r.time_ms.match - r.time_ms.pose);
+        }
         roi_found[which] += r.find(id1).has_value();
         if (which == 1 && !r.stats.empty()) {
           redetect_area.push_back(100.0 * r.stats[0].roi.area() / (cam.width * cam.height));
@@ -455,6 +470,14 @@ int main(int argc, char** argv) {
                 "output %.2f | candidates %.0f\n",
                 median(stage[0]), median(stage[1]), median(stage[2]), median(stage[3]), median(stage[4]));
   }
+  if (!part[0].empty())
+    std::printf("fast extractor, whole detection, 1 thread, stage medians (wall, ms): extraction %.2f | matching "
+                "%.2f | pose + checks %.2f | rest %.2f\n",
+                median(part[0]), median(part[1]), median(part[2]), median(part[3]));
+  if (!roi_part[0].empty())
+    std::printf("fast extractor, ROI re-detection, 1 thread, stage medians (wall, ms): extraction %.2f | "
+                "matching %.2f | pose + checks %.2f | rest %.2f\n",
+                median(roi_part[0]), median(roi_part[1]), median(roi_part[2]), median(roi_part[3]));
   std::printf("CPU-time bounds on --threads cores (1 thread per frame or pair, thread CPU time): mono stream "
               "cv::SIFT %.1f fps, fast %.1f fps; stereo cv::SIFT %.1f pairs/s, fast %.1f pairs/s\n",
               threads * 1000.0 / rows[kDetect1Cpu].opencv, threads * 1000.0 / rows[kDetect1Cpu].fast,
