@@ -302,6 +302,14 @@ int main(int argc, char** argv) {
   rows[kRoiDetect] = {"ROI re-detection (pose prior)", NAN, NAN, "ms", "-"};
   rows[kRoiDetectCpu] = {"ROI re-detection, CPU time", NAN, NAN, "ms", "-"};
   std::vector<double> stage[5], part[4], roi_part[4], redetect_area, redetect_min, redetect_max;
+  // A detection's own stage times: extraction, matching, pose + checks, the rest.
+  auto addStages = [](const DetectionResult& r, std::vector<double>* p) {
+    const DetectionTimings& t = r.time_ms;
+    p[0].push_back(t.extract);
+    p[1].push_back(t.match);
+    p[2].push_back(t.pose);
+    p[3].push_back(t.total - t.extract - t.match - t.pose);
+  };
   int features[2] = {0, 0}, found[2] = {0, 0}, stereo_found[2] = {0, 0}, roi_found[2] = {0, 0};
   const int saved_threads = cv::getNumThreads();
   const std::string load_before = loadAverage();
@@ -380,12 +388,7 @@ int main(int argc, char** argv) {
       for (int i = 0; i < sample; ++i) {
         DetectionResult r;
         cw.push_back(threadCpuMs([&] { r = det1.detect(data[i].left, cam); }));
-        if (which == 1) {
-          part[0].push_back(r.time_ms.extract);
-          part[1].push_back(r.time_ms.match);
-          part[2].push_back(r.time_ms.pose);
-          part[3].push_back(r.time_ms.total - r.time_ms.extract - r.time_ms.match - r.time_ms.pose);
-        }
+        if (which == 1) addStages(r, part);
       }
       for (int i = 0; i < sample; ++i)
         cs.push_back(threadCpuMs([&] { det1.detectStereo(data[i].left, data[i].right, rig); }));
@@ -400,12 +403,7 @@ int main(int argc, char** argv) {
         DetectionResult r;
         rw.push_back(timeMs([&] { r = det1.detect(data[i].left, cam, {}, q); }));
         rc.push_back(threadCpuMs([&] { det1.detect(data[i].left, cam, {}, q); }));
-        if (which == 1) {
-          roi_part[0].push_back(r.time_ms.extract);
-          roi_part[1].push_back(r.time_ms.match);
-          roi_part[2].push_back(r.time_ms.pose);
-          roi_part[3].push_back(r.time_ms.total - r.time_ms.extract - r.time_ms.match - r.time_ms.pose);
-        }
+        if (which == 1) addStages(r, roi_part);
         roi_found[which] += r.find(id1).has_value();
         if (which == 1 && !r.stats.empty()) {
           redetect_area.push_back(100.0 * r.stats[0].roi.area() / (cam.width * cam.height));

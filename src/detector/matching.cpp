@@ -138,11 +138,9 @@ double log10Nfa(const Context& cx, std::vector<double> residuals, int n) {
 /// radius of its predicted position, with orientation within +-tol and size within +-tol*s of the
 /// prediction, take the nearest in descriptor space if it passes the local ratio.
 /// radius_px(i, predicted xs) gives the search radius. One scene feature keeps its best match.
-/// With a list, at most max_tried of its features predicted to be detectable are tried.
 template <class Radius>
 void localSearch(const Context& cx, const Predictor& pred, const std::vector<int>* list,
-                 const Radius& radius_px, std::vector<LocalMatch>* out, int max_tried = INT_MAX,
-                 int* tested = nullptr) {
+                 const Radius& radius_px, std::vector<LocalMatch>* out, int* tested = nullptr) {
   out->clear();
   if (tested) *tested = 0;
   const auto& rk = cx.ref.features.keypoints;
@@ -150,14 +148,12 @@ void localSearch(const Context& cx, const Predictor& pred, const std::vector<int
   const double lr2 = cx.opt.local_ratio * cx.opt.local_ratio;
   std::vector<int> cand;
   const int n = list ? static_cast<int>(list->size()) : static_cast<int>(rk.size());
-  int tried = 0;
-  for (int li = 0; li < n && tried < max_tried; ++li) {
+  for (int li = 0; li < n; ++li) {
     const int i = list ? (*list)[li] : li;
     Vec2 xs;
     double ang, size;
     if (!pred.predict(rk[i], &xs, &ang, &size)) continue;
     if (size < cx.min_scene_size) continue;  // too small to have been detected in the scene
-    ++tried;
     const double r = radius_px(xs);
     if (xs.x() < cx.bounds.x - r || xs.y() < cx.bounds.y - r ||
         xs.x() > cx.bounds.x + cx.bounds.width + r || xs.y() > cx.bounds.y + cx.bounds.height + r)
@@ -378,7 +374,7 @@ bool evaluateHypothesis(const Context& cx, int r, int s, Candidate* out) {
         return factor * (e0 + kHomographyErrorPerPx * (xs - seed).norm());
       }, &m);
     } else {
-      localSearch(cx, hom, nullptr, [&](const Vec2&) { return factor * e0; }, &m, INT_MAX, &tested);
+      localSearch(cx, hom, nullptr, [&](const Vec2&) { return factor * e0; }, &m, &tested);
     }
   }
   return makeCandidate(cx, toCorrespondences(m), out, tested);
