@@ -52,6 +52,9 @@ void usage() {
       "  Then the CPU-time bounds on --threads cores and the issue's targets (>= 48 fps, latency\n"
       "  < 40 ms, >= 24 stereo pairs/s, re-detection < 10 ms), wall clock and CPU-time bound.\n"
       "  Per-frame rows: medians over the first min(N, 48) frames; the stream and stereo rows: all N.\n"
+      "  Machine probe: a fixed register-only multiply-add loop (no memory traffic) timed alone and\n"
+      "    on --threads threads at once, before and after each extractor's stream rows, relative to\n"
+      "    its fastest time in the run: > 1 means the host gave this VM less compute then.\n"
       "The issue's final table (wall clock, both extractors): on an otherwise idle machine run\n"
       "    build/bench/bench_sift\n"
       "  with no arguments (= --frames 200 --threads 2 --seed 1); it prints the load average before and\n"
@@ -115,6 +118,40 @@ double stream(int n, int workers, std::vector<double>* latency, F fn) {
   for (auto& t : pool) t.join();
   return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
 }
+
+/// The machine's compute speed at this moment: a fixed loop of multiply-adds on registers only
+/// (eight independent chains, no memory traffic), run on `threads` threads at once; returns the
+/// slowest thread's wall time (ms). On this project's VMs the same loop takes from 1.0x to 1.5x its
+/// fastest time, alone or with both vCPUs busy: the host shares the cores. Printed beside the
+/// stream rows so that a wall-clock figure can be read against the speed it ran at.
+double probeMs(int threads) {
+  std::vector<double> ms(threads, 0);
+  std::vector<float> out(threads, 0);
+  std::vector<std::thread> pool;
+  for (int t = 0; t < threads; ++t)
+    pool.emplace_back([&, t] {
+      ms[t] = timeMs([&] {
+        volatile float seed = 1e-3f * static_cast<float>(t + 1);
+        const float k = 0.99999f, b = 1e-6f;
+        float a[8];
+        for (int c = 0; c < 8; ++c) a[c] = seed + static_cast<float>(c);
+        for (int n = 0; n < 40000000; ++n)
+          for (int c = 0; c < 8; ++c) a[c] = a[c] * k + b;
+        float s = 0;
+        for (float v : a) s += v;
+        out[t] = s;
+      });
+    });
+  for (auto& th : pool) th.join();
+  if (out[0] == 12345.f) std::printf(" ");  // keeps the loop's result alive
+  return *std::max_element(ms.begin(), ms.end());
+}
+
+/// "alone X ms, N at once Y ms": the probe on 1 thread, then on `threads` threads.
+struct Probe {
+  double alone = NAN, together = NAN;
+};
+Probe probe(int threads) { return {probeMs(1), probeMs(threads)}; }
 
 /// The operation --profile measures, not inlined so that callgrind can collect only it.
 template <class F>
@@ -281,6 +318,7 @@ int main(int argc, char** argv) {
   }
   const int sample = std::min(frames, 48);  // frames for the per-frame medians
   std::vector<double> roi_area;
+  Probe probe_before[2], probe_after[2];  // around each extractor's stream and stereo rows
   for (int i = 0; i < sample; ++i) roi_area.push_back(100.0 * data[i].roi.area() / (cam.width * cam.height));
 
   enum RowId {
@@ -427,6 +465,7 @@ int main(int argc, char** argv) {
       dets.back().addObject(textureObject("target", tex, w));
     }
     std::vector<double> lat;
+    probe_before[which] = probe(threads);
     const double wall = stream(frames, threads, &lat, [&](int wkr, int i) { dets[wkr].detect(data[i].left, cam); });
     set(kStream, 1000.0 * frames / wall);
     set(kStreamLatency, median(lat));
@@ -437,6 +476,7 @@ int main(int argc, char** argv) {
     });
     for (int v : sfound) stereo_found[which] += v;
     set(kStereo, 1000.0 * frames / swall);
+    probe_after[which] = probe(threads);
     cv::setNumThreads(saved_threads);
   }
 
@@ -480,6 +520,24 @@ int main(int argc, char** argv) {
               "cv::SIFT %.1f fps, fast %.1f fps; stereo cv::SIFT %.1f pairs/s, fast %.1f pairs/s\n",
               threads * 1000.0 / rows[kDetect1Cpu].opencv, threads * 1000.0 / rows[kDetect1Cpu].fast,
               threads * 1000.0 / rows[kStereoCpu].opencv, threads * 1000.0 / rows[kStereoCpu].fast);
+  // The probe's fastest time over the run, and how much slower it ran around the streams.
+  double best = INFINITY;
+  for (int k = 0; k < 2; ++k)
+    for (const Probe& p : {probe_before[k], probe_after[k]})
+      for (double v : {p.alone, p.together})
+        if (std::isfinite(v)) best = std::min(best, v);
+  auto showProbe = [&](const char* name, int k) {
+    if (!std::isfinite(probe_before[k].alone)) return;
+    const Probe& b = probe_before[k];
+    const Probe& a = probe_after[k];
+    std::printf("machine probe (a fixed register-only multiply-add loop, ms, and x its fastest in this run) "
+                "around the %s stream rows: before: alone %.0f (%.2fx), %d at once %.0f (%.2fx); after: alone "
+                "%.0f (%.2fx), %d at once %.0f (%.2fx)\n",
+                name, b.alone, b.alone / best, threads, b.together, b.together / best, a.alone, a.alone / best,
+                threads, a.together, a.together / best);
+  };
+  showProbe("cv::SIFT", 0);
+  showProbe("fast", 1);
   const double fps = rows[kStream].fast, latency = rows[kStreamLatency].fast;
   const double pairs = rows[kStereo].fast, roi = rows[kRoiDetect].fast;
   auto met = [](bool ok) { return ok ? "MET" : "NOT MET"; };
