@@ -383,6 +383,21 @@ int Detector::addObject(const ObjectModel& object) {
     e.corners_und_px[i] =
         object.camera ? object.camera->undistortPixel(object.corners_px[i]) : object.corners_px[i];
   e.index = buildReferenceIndex(std::move(f), polygon, opt_.match);
+  if (object.target) {
+    // The plane's own 2D coordinates (corner 0 as origin, axes along its edges 0-1 and 0-3),
+    // scaled so the pattern keeps about its reference size in px.
+    const auto& co = object.target->corners_o;
+    const Eigen::Vector3d e1 = (co[1] - co[0]).normalized();
+    const Eigen::Vector3d e2 = ((co[3] - co[0]) - (co[3] - co[0]).dot(e1) * e1).normalized();
+    const double scale = e.index.diagonal_px / std::max(1e-12, (co[2] - co[0]).norm());
+    std::vector<Eigen::Vector2d> from(4), to(4);
+    for (int i = 0; i < 4; ++i) {
+      from[i] = e.corners_und_px[i];
+      to[i] = scale * Eigen::Vector2d((co[i] - co[0]).dot(e1), (co[i] - co[0]).dot(e2));
+    }
+    const Eigen::Matrix3d R = fitHomographyLeastSquares(from, to);
+    if (R.allFinite()) e.index.rectify_px = R;
+  }
   e.polygon_und_px = e.index.polygon_px;
   e.pyramid = buildReferencePyramid(object.reference);
   // Dense refinement needs an undistorted reference and a region that is the pattern (one that

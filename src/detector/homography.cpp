@@ -169,6 +169,36 @@ Eigen::Matrix3d fitHomographyLeastSquares(const std::vector<Vec2>& from, const s
   return H / H(2, 2);
 }
 
+Eigen::Matrix3d fitAffineLeastSquares(const std::vector<Vec2>& from, const std::vector<Vec2>& to) {
+  const int n = static_cast<int>(from.size());
+  if (n < 3 || static_cast<int>(to.size()) != n) return Eigen::Matrix3d::Constant(kNaN);
+  // Centred coordinates: the 2x2 part from the centred normal equations, then the translation.
+  Vec2 ma = Vec2::Zero(), mb = Vec2::Zero();
+  for (int i = 0; i < n; ++i) {
+    if (!from[i].allFinite() || !to[i].allFinite()) return Eigen::Matrix3d::Constant(kNaN);
+    ma += from[i];
+    mb += to[i];
+  }
+  ma /= n;
+  mb /= n;
+  Eigen::Matrix2d S = Eigen::Matrix2d::Zero(), C = Eigen::Matrix2d::Zero();
+  for (int i = 0; i < n; ++i) {
+    const Vec2 x = from[i] - ma, y = to[i] - mb;
+    S.noalias() += x * x.transpose();
+    C.noalias() += y * x.transpose();
+  }
+  // Collinear (or coincident) points: the smallest spread direction is (near) empty.
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d> es(S);
+  if (es.info() != Eigen::Success || !(es.eigenvalues()(0) > 1e-9 * std::max(1.0, es.eigenvalues()(1))))
+    return Eigen::Matrix3d::Constant(kNaN);
+  const Eigen::Matrix2d M = C * S.inverse();
+  Eigen::Matrix3d A = Eigen::Matrix3d::Identity();
+  A.topLeftCorner<2, 2>() = M;
+  A.topRightCorner<2, 1>() = mb - M * ma;
+  if (!A.allFinite()) return Eigen::Matrix3d::Constant(kNaN);
+  return A;
+}
+
 HomographyResult estimateHomography(const std::vector<Vec2>& from, const std::vector<Vec2>& to,
                                     const HomographyOptions& opt) {
   opt.check();

@@ -39,6 +39,11 @@ HomographyResult estimateHomographyUnchecked(const std::vector<Eigen::Vector2d>&
 Eigen::Matrix3d fitHomographyLeastSquares(const std::vector<Eigen::Vector2d>& from,
                                           const std::vector<Eigen::Vector2d>& to);
 
+/// Least-squares affine map (6 parameters, last row 0 0 1) minimising sum |x_to - A(x_from)|^2.
+/// Needs >= 3 points not all collinear; returns a non-finite matrix when it cannot fit.
+Eigen::Matrix3d fitAffineLeastSquares(const std::vector<Eigen::Vector2d>& from,
+                                      const std::vector<Eigen::Vector2d>& to);
+
 /// x_to for one point (no check for the point at infinity).
 Eigen::Vector2d applyHomography(const Eigen::Matrix3d& H, const Eigen::Vector2d& x);
 

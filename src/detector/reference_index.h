@@ -23,6 +23,10 @@ struct ReferenceIndex {
   double feature_hull_area_px2 = 0;           ///< area of the convex hull of the kept features
   GridIndex neighbours;                       ///< features.keypoints for nearest-first queries (reference px)
   IntegerDescriptors descriptors;             ///< features.descriptors for the kernels (byte split)
+  /// Reference px -> the pattern plane seen fronto-parallel (plane metres scaled to about the
+  /// reference's px), from the reference pose; identity for 2D-only objects (the reference then
+  /// stands for the plane).
+  Eigen::Matrix3d rectify_px = Eigen::Matrix3d::Identity();
 };
 
 /// Keeps features inside the polygon (>= 3 vertices; empty = whole image), then at most

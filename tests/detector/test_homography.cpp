@@ -1,6 +1,7 @@
 // Homography estimation: exact recovery, robustness to outliers, degenerate input.
 #include <gtest/gtest.h>
 
+#include <Eigen/Geometry>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -128,6 +129,42 @@ TEST(Homography, DegenerateInputsFailCleanly) {
   // All points mapped to one point: singular.
   std::vector<Vec2> same(5, Vec2(3, 3));
   EXPECT_FALSE(estimateHomography(sq, same, opt).ok);
+}
+
+TEST(Homography, AffineLeastSquaresIsExactOnAffineDataAndFailsCleanly) {
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-1, 1);
+  Eigen::Matrix3d A = Eigen::Matrix3d::Identity();
+  A.topRows<2>() << 0.7, -0.2, 120, 0.15, 0.9, -40;
+  std::vector<Vec2> from, to;
+  for (int i = 0; i < 7; ++i) {
+    from.emplace_back(300 * u(rng), 200 * u(rng));
+    to.push_back((A * from.back().homogeneous()).hnormalized());
+  }
+  const Eigen::Matrix3d F = fitAffineLeastSquares(from, to);
+  ASSERT_TRUE(F.allFinite());
+  EXPECT_LT((F - A).cwiseAbs().maxCoeff(), 1e-9);
+  // Noisy: the least-squares solution (its residual is orthogonal to the design's columns).
+  std::normal_distribution<double> n(0, 0.5);
+  for (Vec2& y : to) y += Vec2(n(rng), n(rng));
+  const Eigen::Matrix3d G = fitAffineLeastSquares(from, to);
+  Eigen::Vector3d sx = Eigen::Vector3d::Zero(), sy = Eigen::Vector3d::Zero();
+  for (size_t i = 0; i < from.size(); ++i) {
+    const Vec2 r = (G * from[i].homogeneous()).hnormalized() - to[i];
+    sx += r.x() * from[i].homogeneous();
+    sy += r.y() * from[i].homogeneous();
+  }
+  EXPECT_LT(sx.norm() + sy.norm(), 1e-6);
+  EXPECT_DOUBLE_EQ(G(2, 0), 0);
+  EXPECT_DOUBLE_EQ(G(2, 1), 0);
+  // Too few, collinear, coincident or non-finite points: a non-finite matrix, no throw.
+  EXPECT_FALSE(fitAffineLeastSquares({from[0], from[1]}, {to[0], to[1]}).allFinite());
+  EXPECT_FALSE(fitAffineLeastSquares({{0, 0}, {1, 1}, {2, 2}, {5, 5}}, {{0, 0}, {1, 0}, {2, 1}, {3, 3}}).allFinite());
+  EXPECT_FALSE(fitAffineLeastSquares({{4, 4}, {4, 4}, {4, 4}}, {{0, 0}, {1, 0}, {0, 1}}).allFinite());
+  std::vector<Vec2> bad = from;
+  bad[3].x() = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_FALSE(fitAffineLeastSquares(bad, to).allFinite());
+  EXPECT_FALSE(fitAffineLeastSquares(from, {to[0], to[1], to[2]}).allFinite());
 }
 
 TEST(Homography, OptionsCheck) {

@@ -322,6 +322,8 @@ TEST(Matching, OptionsCheckRejectsNonsense) {
   bad([](MatchOptions& o) { o.max_instances = 0; });
   bad([](MatchOptions& o) { o.max_descriptor_distance = -1; });
   bad([](MatchOptions& o) { o.min_inlier_spread = 1; });
+  bad([](MatchOptions& o) { o.affine_below_px = -1; });
+  bad([](MatchOptions& o) { o.affine_below_px = NAN; });
   // matchObject checks its options too, and tolerates empty inputs.
   MatchOptions o;
   const ReferenceIndex empty = buildReferenceIndex(Features{}, {Vec2(0, 0), Vec2(9, 0), Vec2(0, 9)}, o);
