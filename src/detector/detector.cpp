@@ -384,18 +384,15 @@ int Detector::addObject(const ObjectModel& object) {
         object.camera ? object.camera->undistortPixel(object.corners_px[i]) : object.corners_px[i];
   e.index = buildReferenceIndex(std::move(f), polygon, opt_.match);
   if (object.target) {
-    // The plane's own 2D coordinates (corner 0 as origin, axes along its edges 0-1 and 0-3),
-    // scaled so the pattern keeps about its reference size in px.
-    const auto& co = object.target->corners_o;
-    const Eigen::Vector3d e1 = (co[1] - co[0]).normalized();
-    const Eigen::Vector3d e2 = ((co[3] - co[0]) - (co[3] - co[0]).dot(e1) * e1).normalized();
-    const double scale = e.index.diagonal_px / std::max(1e-12, (co[2] - co[0]).norm());
-    std::vector<Eigen::Vector2d> from(4), to(4);
-    for (int i = 0; i < 4; ++i) {
-      from[i] = e.corners_und_px[i];
-      to[i] = scale * Eigen::Vector2d((co[i] - co[0]).dot(e1), (co[i] - co[0]).dot(e2));
-    }
-    const Eigen::Matrix3d R = fitHomographyLeastSquares(from, to);
+    // Reference px -> the pattern plane (its frame oMp; metres scaled to about the reference's
+    // px): the inverse of x_ref ~ K_ref [r1 r2 t] (x, y, 1), [r1 r2 t] of the reference's cMp
+    // (as in poseFromHomography).
+    const PlanarTarget& t = *object.target;
+    const Pose ref_cMp = t.ref_cMo * t.oMp;
+    Eigen::Matrix3d A_ref;
+    A_ref << ref_cMp.R.col(0), ref_cMp.R.col(1), ref_cMp.t;
+    const double scale = e.index.diagonal_px / std::max(1e-12, (t.corners_o[2] - t.corners_o[0]).norm());
+    const Eigen::Matrix3d R = Eigen::Vector3d(scale, scale, 1).asDiagonal() * (t.K_ref * A_ref).inverse();
     if (R.allFinite()) e.index.rectify_px = R;
   }
   e.polygon_und_px = e.index.polygon_px;

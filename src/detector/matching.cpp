@@ -10,6 +10,7 @@
 #include <unordered_map>
 
 #include "core/error.h"
+#include "core/geometry.h"
 #include "detector/homography.h"
 
 namespace refgrasp::detector {
@@ -220,12 +221,9 @@ Eigen::Matrix3d planeAffineUnlessPerspective(const Context& cx, const Eigen::Mat
                                              const std::vector<Vec2>& b) {
   const int n = static_cast<int>(a.size());
   if (!(cx.opt.affine_below_px > 0) || n <= 4) return H;
-  std::vector<cv::Point2f> q;
-  for (const Vec2& p : cx.ref.hull_px) {
-    const Vec2 y = applyHomography(H, p);
-    q.emplace_back(static_cast<float>(y.x()), static_cast<float>(y.y()));
-  }
-  if (!(std::sqrt(std::abs(cv::contourArea(q))) < cx.opt.affine_below_px)) return H;
+  std::vector<Vec2> q;
+  for (const Vec2& p : cx.ref.hull_px) q.push_back(applyHomography(H, p));
+  if (!(std::sqrt(std::abs(signedArea(q))) < cx.opt.affine_below_px)) return H;
   std::vector<Vec2> r;
   r.reserve(a.size());
   for (const Vec2& x : a) r.push_back(applyHomography(cx.ref.rectify_px, x));

@@ -94,8 +94,10 @@ TEST(RealisticSets, FalsePositivesOnPhotoClutterWithEveryObjectRegistered) {
 // reported on): the plane-affine map of small instances (MatchOptions::affine_below_px) against
 // the full homography on the same frames. Few matches on a 30-60 px pattern leave the
 // homography's perspective poorly determined; the affine map of the rectified reference plane
-// reports fewer wrong corners, finds at least as many, and its corners are closer where both find
-// the pattern.
+// reports no more wrong corners, finds and poses at least as many, and its corners are closer
+// where both find the pattern (measured: found 41 vs 39, pose ok 24 vs 20, wrong 0 vs 0, corner
+// median 1.07 vs 1.37 px; fitting the affine map to reference px, without the rectification,
+// fails found (38 vs 39) and the corner median (1.86 vs 1.37 px)).
 TEST(RealisticSets, SmallPatternsGetThePlaneAffineMap) {
   constexpr uint64_t kSeed = 2001;
   EvalOptions affine, homography;

@@ -102,7 +102,7 @@ TEST(RealisticTracking, APoseOnNearlyEveryFrameWhereDetectionFindsAboutHalf) {
               modes.c_str(), poses, good, worst_rot, 100 * worst_trans, modes_b.c_str(), poses_b, good_b,
               worst_rot_b, 100 * worst_trans_b, in_view);
   EXPECT_EQ(in_view, 120);
-  // The data: single-frame detection gives a correct pose on 50-70 % of the frames (75 of 75
+  // The data: single-frame detection gives a correct pose on 40-70 % of the frames (75 of 75
   // poses measured since small instances get the plane-affine map; 63 of 68 before, the other 5
   // the far views' mirror pose, 90 deg off with the right position: the planar ambiguity a single
   // frame cannot resolve, which is why the robot's pipeline confirms and then tracks). The far
