@@ -30,7 +30,7 @@ void usage() {
       "Usage: bench_realistic [--frames N per set (160)] [--seed S (1001 = the report split;\n"
       "       develop on 1)] [--set photos|procedural|far_oblique] [--clutter N frames (100)]\n"
       "       [--pose paper|refined] [--min-inliers N] [--max-log10-nfa X] [--count-rule (no\n"
-      "       a-contrario test: min_inliers alone)] [--min-correlation C] [--no-verify]\n"
+      "       a-contrario test: min_inliers alone)] [--min-correlation C] [--no-verify] [--no-realign]\n"
       "       [--detector-config FILE (options YAML; the flags after it override it)]\n"
       "       [--min-distance-bin N (only frames of distance bins >= N)]\n"
       "       [--dump DIR (write the references and 12 frames per set, no evaluation)]\n"
@@ -78,6 +78,8 @@ int main(int argc, char** argv) {
       opt.detector.verify.min_correlation = bench::numberArg("bench_realistic", "--min-correlation", argv[++i], -1);
     } else if (a == "--no-verify") {
       opt.detector.verify.enabled = false;
+    } else if (a == "--no-realign") {
+      opt.detector.verify.realign = false;
     } else if (a == "--classic-fast") {
       opt.classic_own_sift = false;
     } else if (a == "--wall") {

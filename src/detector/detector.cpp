@@ -196,15 +196,17 @@ PoseResult poseFromDenseH(const RegisteredObject& e, const DetectorOptions& opt,
   return estimatePoseRefined(X, y, target, camera.K(), opt.pose_options);
 }
 
+// dense: the dense refinement of match.H with opt.dense when the caller already ran it.
 PoseResult estimatePose(const RegisteredObject& e, const DetectorOptions& opt,
                         const MatchCandidate& match, const Features& scene,
-                        const Intrinsics& camera, PoseMethod method) {
+                        const Intrinsics& camera, PoseMethod method,
+                        const DenseRefineResult* dense = nullptr) {
   if (!e.model.target) return {};
   const PlanarTarget& target = *e.model.target;
   if (method == PoseMethod::kPaper)
     return estimatePosePaper(match.H, target, camera.K(), opt.pose_options);
   if (opt.dense.enabled && e.dense_usable && !scene.image.empty()) {
-    const DenseRefineResult dr = refineDense(e, match.H, scene.image, camera, opt.dense);
+    const DenseRefineResult dr = dense ? *dense : refineDense(e, match.H, scene.image, camera, opt.dense);
     if (dr.ok) {
       const PoseResult p = poseFromDenseH(e, opt, dr.H, camera);
       if (p.ok) return p;
@@ -226,6 +228,42 @@ PoseResult estimatePose(const RegisteredObject& e, const DetectorOptions& opt,
     if (k > 0) sigma.push_back(std::max(0.05, k * ks.size));
   }
   return estimatePoseRefined(X, y, target, camera.K(), opt.pose_options, sigma);
+}
+
+// Photometric re-alignment of a candidate (VerifyOptions::realign). The dense refinement of
+// cand.H (opt.dense, as the refined pose runs it; returned in *dense) normally moves the pattern
+// by a pixel or two. When it converges well but wants to move a corner further than
+// dense.max_corner_shift_px, the features' alignment is doubtful: on a repeated motif (a
+// facade's windows) a consensus of matches one period off fits a stretched homography. Then
+// the alignment is refined again with room to move (half the pattern's diagonal), the features
+// are matched again under it (matchUnderHomography), and that candidate replaces cand when the
+// features support it as well (at least as many inliers, or a consensus at least as significant:
+// log10 NFA) and its warped reference agrees better with the scene (verifyInstance).
+MatchCandidate realign(const RegisteredObject& e, const DetectorOptions& opt, const MatchCandidate& cand,
+                       const Features& scene, const GridIndex& grid, const Intrinsics& camera,
+                       DenseRefineResult* dense) {
+  *dense = refineDense(e, cand.H, scene.image, camera, opt.dense);
+  if (dense->ok || !(dense->corner_shift_px > opt.dense.max_corner_shift_px) ||
+      !(dense->correlation >= opt.dense.min_correlation))
+    return cand;
+  std::vector<Eigen::Vector2d> q;
+  for (const auto& c : e.corners_und_px) q.push_back(applyHomography(cand.H, c));
+  const double diag = 0.5 * ((q[2] - q[0]).norm() + (q[3] - q[1]).norm());
+  DenseRefineOptions wide = opt.dense;
+  wide.max_corner_shift_px = std::max(wide.max_corner_shift_px, 0.5 * diag);
+  if (!std::isfinite(wide.max_corner_shift_px)) return cand;
+  const DenseRefineResult w = refineDense(e, cand.H, scene.image, camera, wide);
+  if (!w.ok) return cand;
+  const std::optional<MatchCandidate> again = matchUnderHomography(e.index, scene, grid, opt.match, w.H);
+  if (!again) return cand;
+  const bool supported = again->inliers.size() >= cand.inliers.size() ||
+                         (std::isfinite(cand.log10_nfa) && again->log10_nfa <= cand.log10_nfa);
+  if (!supported) return cand;
+  const VerifyResult v0 = verifyInstance(e.pyramid, verificationRegion(e, cand), scene.image, camera, cand.H, opt.verify);
+  const VerifyResult v1 = verifyInstance(e.pyramid, verificationRegion(e, *again), scene.image, camera, again->H, opt.verify);
+  if (!(v1.ok && v1.correlation > v0.correlation)) return cand;
+  *dense = refineDense(e, again->H, scene.image, camera, opt.dense);
+  return *again;
 }
 
 // What one object searches in a frame.
@@ -505,7 +543,11 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
     t = Clock::now();
     int found = 0, pose_failures = 0, sanity_failures = 0, verify_failures = 0;
     SanityStatus rejected = SanityStatus::kOk;
-    for (const MatchCandidate& cand : m.instances) {
+    for (const MatchCandidate& matched : m.instances) {
+      DenseRefineResult dense;
+      const bool try_realign = x && e.model.target && e.dense_usable && opt.verify.enabled && opt.verify.realign &&
+                               !scene.image.empty();
+      const MatchCandidate cand = try_realign ? realign(e, opt, matched, scene, x->grid, camera, &dense) : matched;
       Detection d;
       d.object = id;
       d.H = cand.H;
@@ -513,7 +555,7 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
       d.score = cand.score;
       d.log10_nfa = cand.log10_nfa;
       if (e.model.target) {
-        const PoseResult p = estimatePose(e, opt, cand, scene, camera, opt.pose);
+        const PoseResult p = estimatePose(e, opt, cand, scene, camera, opt.pose, try_realign ? &dense : nullptr);
         if (!p.ok) {
           rejected = SanityStatus::kNotFinite;
           ++pose_failures;

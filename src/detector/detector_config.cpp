@@ -66,6 +66,7 @@ void visitFields(O& o, Visit&& v) {
   v("verify.compare_px", o.verify.compare_px);
   v("verify.strong_correlation", o.verify.strong_correlation);
   v("verify.min_strong_cells", o.verify.min_strong_cells);
+  v("verify.realign", o.verify.realign);
 }
 
 // check() names fields "<Options>.<field>"; the file names them "<section>.<field>".

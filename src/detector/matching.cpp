@@ -24,6 +24,7 @@ constexpr double kSimilarityErrorPx = 2.0;     // at the seed itself: SIFT local
 constexpr double kSimilarityErrorPerPx = 0.1;  // growth with distance: ~10% scale/orientation error
 constexpr double kHomographyErrorPx = 2.0;     // after a homography fit
 constexpr double kHomographyErrorPerPx = 0.03; // extrapolating a fit from the seed's neighbourhood
+constexpr double kAlignedErrorPx = 1.0;        // of a given (e.g. photometric) alignment: matchUnderHomography
 constexpr int kQuickNeighbours = 40;           // detectable reference neighbours tried in the quick test
 constexpr int kQuickMinMatches = 4;            // quick test passes with this many local matches
 constexpr int kPass1MinMatches = 6;            // pass-1 matches needed to fit a homography
@@ -557,17 +558,19 @@ MatchResult matchObject(const ReferenceIndex& ref, const Features& scene, const 
   return matchObjectUnchecked(ref, scene, grid, opt);
 }
 
-MatchResult matchObjectUnchecked(const ReferenceIndex& ref, const Features& scene,
-                                 const GridIndex& grid, const MatchOptions& opt) {
-  if (ref.features.size() < 4 || scene.size() < 4) return {};
-  MatchRejects rejects;
-  Context cx{ref, scene, grid, opt, integerDescriptors(scene.descriptors, false), &rejects, 0, 0, {}};
+namespace {
+
+/// The per-call context: scene descriptors for the kernels, size floor, bounds, and the
+/// a-contrario background model measured on this frame. nn: the global 2-NN of the scene.
+Context makeContext(const ReferenceIndex& ref, const Features& scene, const GridIndex& grid, const MatchOptions& opt,
+                    MatchRejects* rejects, std::vector<NearestTwo>* nn) {
+  Context cx{ref, scene, grid, opt, integerDescriptors(scene.descriptors, false), rejects, 0, 0, {}};
   double min_size = 1e9;
   for (const auto& k : scene.keypoints) min_size = std::min<double>(min_size, k.size);
   cx.min_scene_size = 0.8 * min_size;
   cx.max_dd2 = opt.max_descriptor_distance * opt.max_descriptor_distance;
   cx.bounds = cv::Rect2d(-0.5, -0.5, scene.image_size.width, scene.image_size.height);
-  const std::vector<NearestTwo> nn = nearestTwo(ref.descriptors, cx.scene_desc);
+  *nn = nearestTwo(ref.descriptors, cx.scene_desc);
   if (std::isfinite(opt.max_log10_nfa)) {
     // Background model of the a-contrario test, measured on this frame: scene features per px^2
     // over the area they fall in, times the chance that one passes a local match's orientation
@@ -580,16 +583,69 @@ MatchResult matchObjectUnchecked(const ReferenceIndex& ref, const Features& scen
     }
     const double area = std::max(1.0, static_cast<double>(x1 - x0) * (y1 - y0));
     int close = 0;
-    for (const auto& x : nn) close += x.best >= 0 && x.d1 <= cx.max_dd2;
+    for (const auto& x : *nn) close += x.best >= 0 && x.d1 <= cx.max_dd2;
     const double q_desc = std::clamp(static_cast<double>(close) / (static_cast<double>(scene.size()) * ref.features.size()), 1e-6, 1.0);
     const double q_orient = opt.orientation_tolerance_rad / kPi;
     const double q_scale = std::min(1.0, std::log2((1 + opt.scale_tolerance) / (1 - opt.scale_tolerance)) / 5);
     cx.chance_per_px2 = scene.size() / area * q_orient * q_scale * q_desc;
     cx.log10_tests = std::log10(static_cast<double>(opt.matcher == MatcherType::kPaper ? opt.max_hypotheses : 1));
   }
+  return cx;
+}
+
+}  // namespace
+
+MatchResult matchObjectUnchecked(const ReferenceIndex& ref, const Features& scene,
+                                 const GridIndex& grid, const MatchOptions& opt) {
+  if (ref.features.size() < 4 || scene.size() < 4) return {};
+  MatchRejects rejects;
+  std::vector<NearestTwo> nn;
+  const Context cx = makeContext(ref, scene, grid, opt, &rejects, &nn);
   MatchResult res = opt.matcher == MatcherType::kPaper ? matchPaper(cx, nn) : matchRatio(cx, nn);
   res.rejected = rejects;
   return res;
+}
+
+std::optional<MatchCandidate> matchUnderHomography(const ReferenceIndex& ref, const Features& scene,
+                                                   const GridIndex& grid, const MatchOptions& opt,
+                                                   const Eigen::Matrix3d& H) {
+  if (ref.features.size() < 4 || scene.size() < 4 || !H.allFinite()) return std::nullopt;
+  MatchRejects rejects;
+  std::vector<NearestTwo> nn;
+  const Context cx = makeContext(ref, scene, grid, opt, &rejects, &nn);
+  // Two searches over all reference features, the more significant consensus wins:
+  //  - one pass under H with the radius of a precise alignment (a wider one takes the neighbours
+  //    one period away on a repeated motif, and their consensus comes back);
+  //  - evaluateHypothesis's last two passes (a radius of 2 px, a homography fitted to the matches,
+  //    then max(2 px, its rms)), for an alignment that is right but not everywhere precise.
+  const double factor = opt.search_radius_factor;
+  std::optional<MatchCandidate> best;
+  auto consider = [&](const std::vector<LocalMatch>& m, int tested) {
+    Candidate c;
+    if (!makeCandidate(cx, toCorrespondences(m), &c, tested)) return;
+    if (!best || c.log10_nfa < best->log10_nfa ||
+        (c.log10_nfa == best->log10_nfa && c.inliers.size() > best->inliers.size()))  // both -inf: the count rule
+      best = MatchCandidate{c.inliers, c.H, c.score, c.log10_nfa};
+  };
+  std::vector<LocalMatch> m;
+  int tested = 0;
+  localSearch(cx, Predictor::homography(H), nullptr, [&](const Vec2&) { return factor * kAlignedErrorPx; }, &m, &tested);
+  consider(m, tested);
+  localSearch(cx, Predictor::homography(H), nullptr, [&](const Vec2&) { return factor * kHomographyErrorPx; }, &m);
+  if (static_cast<int>(m.size()) >= kPass1MinMatches) {
+    std::vector<Vec2> a, b;
+    for (const auto& x : m) {
+      a.push_back(pt(ref.features.keypoints[x.ref]));
+      b.push_back(pt(scene.keypoints[x.scene]));
+    }
+    const HomographyResult h = estimateHomographyUnchecked(a, b, homographyOptions(opt));
+    if (h.ok && static_cast<int>(h.inliers.size()) >= kPass1MinMatches) {
+      const double e0 = std::max(kHomographyErrorPx, h.rms_px);
+      localSearch(cx, Predictor::homography(h.H), nullptr, [&](const Vec2&) { return factor * e0; }, &m, &tested);
+      consider(m, tested);
+    }
+  }
+  return best;
 }
 
 }  // namespace refgrasp::detector

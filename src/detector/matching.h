@@ -10,6 +10,7 @@
 #include <cmath>
 #include <cstdint>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <vector>
 
 #include "detector/features.h"
@@ -139,5 +140,18 @@ MatchResult matchObject(const ReferenceIndex& ref, const Features& scene, const 
 /// matchObject for callers that checked opt once (the Detector, per frame): never checks.
 MatchResult matchObjectUnchecked(const ReferenceIndex& ref, const Features& scene,
                                  const GridIndex& grid, const MatchOptions& opt);
+
+/// The paper matcher's local search (step 2) from a given alignment H (reference px -> scene px,
+/// e.g. a photometric one) instead of a seed's hypothesis, over all reference features, twice:
+/// one pass within search_radius_factor x 1 px of the predictions under H (a precise alignment;
+/// a wider radius takes the neighbours one period away on a repeated motif, and their consensus
+/// comes back), and evaluateHypothesis's last two passes (x 2 px, a homography fitted to those
+/// matches, then x max(2 px, its rms)) for an alignment right but not everywhere precise. Each
+/// gives a candidate by step 3's rules (min_inliers, a-contrario test, plausibility, spread);
+/// the more significant (lower log10 NFA) is returned, nullopt when the features support no
+/// instance there (or H is not finite). Never checks opt.
+std::optional<MatchCandidate> matchUnderHomography(const ReferenceIndex& ref, const Features& scene,
+                                                   const GridIndex& grid, const MatchOptions& opt,
+                                                   const Eigen::Matrix3d& H);
 
 }  // namespace refgrasp::detector

@@ -27,6 +27,14 @@ struct VerifyOptions {
   /// sets), a shared logo or word over the cell or two it covers (<= 2 on photo clutter).
   double strong_correlation = 0.7;
   int min_strong_cells = 3;
+  /// Photometric re-alignment before the checks (3D objects with a dense-usable reference): when
+  /// the dense refinement of an instance converges but moves the pattern further than
+  /// DenseRefineOptions::max_corner_shift_px, the instance is aligned again photometrically with
+  /// room to move (half its diagonal), its features matched again there (matchUnderHomography),
+  /// and the result replaces it when the features support it as well (as many inliers, or a
+  /// log10 NFA as low) and it correlates better. A consensus one period off on a repeated motif
+  /// (a facade's windows) fits a stretched homography that passes every other check.
+  bool realign = true;
   /// Throws std::invalid_argument "VerifyOptions.<field>: <problem>".
   void check() const;
 };

@@ -143,3 +143,55 @@ TEST(RealisticSets, SmallPatternsGetThePlaneAffineMap) {
   EXPECT_GE(pose_a, pose_h);
   EXPECT_LE(median(corner_a), median(corner_h));
 }
+
+// The photometric re-alignment (VerifyOptions::realign) on the development frames where a
+// facade's windows, matched one period off, gave a stretched homography that passed every other
+// check (7 wrong reports over development seeds 3, 5 and 9, corners 9-26 px off): with it, each
+// is found instead (the photometric alignment, matched again, has the better-supported and
+// better-correlating consensus), and nothing found without it is lost. Over the four whole
+// development splits (bench_realistic --seed 1/3/5/9 --frames 160): wrong 7 -> 0, found +15,
+// pose ok +24, nothing lost. Here: found 10 vs 3, pose ok 9 vs 3, wrong 0 vs 7. On splits not
+// developed on (far_oblique, seeds 3001/4001/5001, 120 frames each): found +3, pose ok +4, and
+// the 3 wrong reports there stay (their photometric optimum is one period off as well). On the
+// report split: wrong 4 -> 2, found 286 -> 290, pose ok 240 -> 245.
+TEST(RealisticSets, RealignmentTakesTheFacadeMatchedAPeriodOffBack) {
+  struct Chunk {
+    uint64_t seed;
+    const char* set;
+    int first, last;
+  };
+  const Chunk chunks[] = {{3, "far_oblique", 5, 7},   {3, "far_oblique", 51, 52}, {5, "photos", 117, 118},
+                          {5, "photos", 151, 152},    {5, "far_oblique", 144, 145}, {9, "far_oblique", 74, 83}};
+  EvalOptions on, off;
+  for (EvalOptions* o : {&on, &off}) {
+    o->classic_own_sift = false;
+    o->cpu_time = false;
+  }
+  ASSERT_TRUE(on.detector.verify.realign);  // the default
+  off.detector.verify.realign = false;
+  int found_on = 0, found_off = 0, wrong_on = 0, wrong_off = 0, pose_on = 0, pose_off = 0, frames = 0;
+  for (const Chunk& c : chunks)
+    for (const RealisticSetSpec& spec : realisticSets(c.seed, 160)) {
+      if (spec.name != c.set) continue;
+      const RealisticSet set(spec);
+      const std::vector<FrameOutcome> a = evaluateSet(set, on, c.first, c.last);
+      const std::vector<FrameOutcome> b = evaluateSet(set, off, c.first, c.last);
+      ASSERT_EQ(a.size(), b.size());
+      for (size_t i = 0; i < a.size(); ++i) {
+        const MethodOutcome &ra = a[i].refgrasp, &rb = b[i].refgrasp;
+        ++frames;
+        found_on += ra.found, found_off += rb.found;
+        wrong_on += ra.reported && !ra.found, wrong_off += rb.reported && !rb.found;
+        pose_on += ra.pose_ok, pose_off += rb.pose_ok;
+        EXPECT_TRUE(ra.found || !rb.found) << spec.name << " seed " << c.seed << " frame " << a[i].frame
+                                           << ": found without the re-alignment, lost with it";
+      }
+    }
+  std::printf("%d development frames: re-alignment found %d, pose ok %d, wrong %d; without it found %d, pose ok %d, "
+              "wrong %d\n", frames, found_on, pose_on, wrong_on, found_off, pose_off, wrong_off);
+  EXPECT_EQ(frames, 15);
+  EXPECT_GE(wrong_off, 7);  // the data still shows the failure
+  EXPECT_EQ(wrong_on, 0);
+  EXPECT_GE(found_on, found_off + 7);
+  EXPECT_GE(pose_on, pose_off + 5);
+}
