@@ -21,6 +21,7 @@ struct RegisteredObject {
   std::vector<cv::Mat> pyramid;  ///< reference pyramid (verification; dense refinement)
   bool dense_usable = false;     ///< dense refinement possible (3D, undistorted reference)
   bool region_is_rect = true;    ///< the region is its bounding box (no mask needed)
+  std::vector<Eigen::Vector2d> periods;  ///< repeatPeriods(index): a repeated motif's other alignments
 };
 
 namespace {
@@ -266,6 +267,48 @@ MatchCandidate realign(const RegisteredObject& e, const DetectorOptions& opt, co
   return *again;
 }
 
+// A repeated motif's other alignments (VerifyOptions::realign): cand moved by each of the
+// reference's repeat periods (in the rectified pattern plane), its features matched again there.
+// A distinct alignment (corners farther than the pose check allows) whose consensus is more
+// significant (lower log10 NFA) and whose warped reference correlates at least as well is
+// returned (nullopt: none), with its dense refinement in *dense: the matcher's search stops at
+// its first candidate, which on a facade can be the consensus one window off.
+std::optional<MatchCandidate> alignAcrossPeriods(const RegisteredObject& e, const DetectorOptions& opt,
+                                                 const MatchCandidate& cand, const Features& scene,
+                                                 const GridIndex& grid, const Intrinsics& camera,
+                                                 DenseRefineResult* dense) {
+  if (e.periods.empty()) return std::nullopt;
+  const Eigen::Matrix3d& R = e.index.rectify_px;
+  const Eigen::Matrix3d Ri = R.inverse();
+  if (!Ri.allFinite()) return std::nullopt;
+  std::vector<Eigen::Matrix3d> moved;
+  for (const Eigen::Vector2d& d : e.periods) {
+    Eigen::Matrix3d T = Eigen::Matrix3d::Identity();
+    T(0, 2) = d.x();
+    T(1, 2) = d.y();
+    moved.push_back(cand.H * Ri * T * R);
+  }
+  std::array<Eigen::Vector2d, 4> q;
+  for (int i = 0; i < 4; ++i) q[i] = applyHomography(cand.H, e.corners_und_px[i]);
+  const double diag = 0.5 * ((q[2] - q[0]).norm() + (q[3] - q[1]).norm());
+  const double distinct = std::max(kMaxPoseGapPx, kMaxPoseGapFraction * diag);
+  const std::optional<MatchCandidate>* best = nullptr;
+  const auto found = matchUnderHomographies(e.index, scene, grid, opt.match, moved);
+  for (const auto& c : found) {
+    if (!c || !(c->log10_nfa < cand.log10_nfa) || (best && !(c->log10_nfa < (*best)->log10_nfa))) continue;
+    double gap = 0;
+    for (int i = 0; i < 4; ++i) gap = std::max(gap, (applyHomography(c->H, e.corners_und_px[i]) - q[i]).norm());
+    if (gap > distinct) best = &c;
+  }
+  if (!best) return std::nullopt;
+  const MatchCandidate& other = **best;
+  const VerifyResult v0 = verifyInstance(e.pyramid, verificationRegion(e, cand), scene.image, camera, cand.H, opt.verify);
+  const VerifyResult v1 = verifyInstance(e.pyramid, verificationRegion(e, other), scene.image, camera, other.H, opt.verify);
+  if (!(v1.ok && v1.correlation >= v0.correlation)) return std::nullopt;
+  *dense = refineDense(e, other.H, scene.image, camera, opt.dense);
+  return other;
+}
+
 // What one object searches in a frame.
 struct Search {
   bool searched = true;  // false: only_priors and no prior
@@ -434,6 +477,7 @@ int Detector::addObject(const ObjectModel& object) {
     if (R.allFinite()) e.index.rectify_px = R;
   }
   e.polygon_und_px = e.index.polygon_px;
+  e.periods = repeatPeriods(e.index);
   e.pyramid = buildReferencePyramid(object.reference);
   // Dense refinement needs an undistorted reference and a region that is the pattern (one that
   // is not its bounding box is a mask on the template).
@@ -543,24 +587,18 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
     t = Clock::now();
     int found = 0, pose_failures = 0, sanity_failures = 0, verify_failures = 0;
     SanityStatus rejected = SanityStatus::kOk;
-    for (const MatchCandidate& matched : m.instances) {
-      DenseRefineResult dense;
-      const bool try_realign = x && e.model.target && e.dense_usable && opt.verify.enabled && opt.verify.realign &&
-                               !scene.image.empty();
-      const MatchCandidate cand = try_realign ? realign(e, opt, matched, scene, x->grid, camera, &dense) : matched;
-      Detection d;
+    // The checks of one candidate (pose, its plausibility, sanity, verification); fills d.
+    enum class Check { kOk, kPoseFailed, kPoseDisagrees, kSanity, kNotVerified };
+    auto check = [&](const MatchCandidate& cand, const DenseRefineResult* dense, Detection* out) {
+      Detection& d = *out;
       d.object = id;
       d.H = cand.H;
       d.inliers = static_cast<int>(cand.inliers.size());
       d.score = cand.score;
       d.log10_nfa = cand.log10_nfa;
       if (e.model.target) {
-        const PoseResult p = estimatePose(e, opt, cand, scene, camera, opt.pose, try_realign ? &dense : nullptr);
-        if (!p.ok) {
-          rejected = SanityStatus::kNotFinite;
-          ++pose_failures;
-          continue;
-        }
+        const PoseResult p = estimatePose(e, opt, cand, scene, camera, opt.pose, dense);
+        if (!p.ok) return Check::kPoseFailed;
         d.cMo = p.cMo;
         d.pose_rms_px = p.rms_px;
         for (int i = 0; i < 4; ++i) d.corners[i] = camera.project(p.cMo * e.model.target->corners_o[i]);
@@ -572,32 +610,57 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
         for (int i = 0; i < 4; ++i) hc[i] = distortPixel(camera, applyHomography(cand.H, e.corners_und_px[i]));
         diag = 0.5 * ((hc[2] - hc[0]).norm() + (hc[3] - hc[1]).norm());
         for (int i = 0; i < 4; ++i) gap = std::max(gap, (hc[i] - d.corners[i]).norm());
-        if (!(gap <= std::max(kMaxPoseGapPx, kMaxPoseGapFraction * diag))) {
-          if (found == 0) rejected = SanityStatus::kPoseDisagrees;
-          if (sanity_failures++ == 0) st.sanity = SanityStatus::kPoseDisagrees;
-          continue;
-        }
+        if (!(gap <= std::max(kMaxPoseGapPx, kMaxPoseGapFraction * diag))) return Check::kPoseDisagrees;
       } else {
         for (int i = 0; i < 4; ++i)
           d.corners[i] = distortPixel(camera, applyHomography(cand.H, e.corners_und_px[i]));
       }
       d.sanity = checkDetection(d.corners, d.cMo, camera.width, camera.height, opt.sanity);
-      if (d.sanity != SanityStatus::kOk) {
-        if (found == 0) rejected = d.sanity;
-        if (sanity_failures++ == 0) st.sanity = d.sanity;
-        continue;
-      }
+      if (d.sanity != SanityStatus::kOk) return Check::kSanity;
       if (opt.verify.enabled) {
         const VerifyResult v = verifyInstance(e.pyramid, verificationRegion(e, cand), scene.image, camera, cand.H, opt.verify);
         d.correlation = v.correlation;
-        if (!v.ok) {
-          ++verify_failures;
-          continue;
-        }
+        if (!v.ok) return Check::kNotVerified;
       }
-      d.found = true;
-      d.instance = found++;
-      res.detections.push_back(d);
+      return Check::kOk;
+    };
+    for (const MatchCandidate& matched : m.instances) {
+      DenseRefineResult dense;
+      const bool try_realign = x && e.model.target && e.dense_usable && opt.verify.enabled && opt.verify.realign &&
+                               !scene.image.empty();
+      const MatchCandidate cand = try_realign ? realign(e, opt, matched, scene, x->grid, camera, &dense) : matched;
+      Detection d;
+      const Check c = check(cand, try_realign ? &dense : nullptr, &d);
+      if (c == Check::kOk && try_realign) {
+        // Only an instance that passed every check is compared with its repeat-period
+        // alignments, and one of them replaces it only when it passes them too.
+        DenseRefineResult other_dense;
+        const std::optional<MatchCandidate> other = alignAcrossPeriods(e, opt, cand, scene, x->grid, camera, &other_dense);
+        Detection od;
+        if (other && check(*other, &other_dense, &od) == Check::kOk) d = od;
+      }
+      switch (c) {
+        case Check::kOk:
+          d.found = true;
+          d.instance = found++;
+          res.detections.push_back(d);
+          break;
+        case Check::kPoseFailed:
+          rejected = SanityStatus::kNotFinite;
+          ++pose_failures;
+          break;
+        case Check::kPoseDisagrees:
+          if (found == 0) rejected = SanityStatus::kPoseDisagrees;
+          if (sanity_failures++ == 0) st.sanity = SanityStatus::kPoseDisagrees;
+          break;
+        case Check::kSanity:
+          if (found == 0) rejected = d.sanity;
+          if (sanity_failures++ == 0) st.sanity = d.sanity;
+          break;
+        case Check::kNotVerified:
+          ++verify_failures;
+          break;
+      }
     }
     if (found == 0) {
       res.detections.emplace_back();

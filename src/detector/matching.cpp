@@ -606,19 +606,16 @@ MatchResult matchObjectUnchecked(const ReferenceIndex& ref, const Features& scen
   return res;
 }
 
-std::optional<MatchCandidate> matchUnderHomography(const ReferenceIndex& ref, const Features& scene,
-                                                   const GridIndex& grid, const MatchOptions& opt,
-                                                   const Eigen::Matrix3d& H) {
-  if (ref.features.size() < 4 || scene.size() < 4 || !H.allFinite()) return std::nullopt;
-  MatchRejects rejects;
-  std::vector<NearestTwo> nn;
-  const Context cx = makeContext(ref, scene, grid, opt, &rejects, &nn);
+namespace {
+
+/// matchUnderHomography in a context made once for several alignments.
+std::optional<MatchCandidate> matchUnderHomographyIn(const Context& cx, const Eigen::Matrix3d& H) {
   // Two searches over all reference features, the more significant consensus wins:
   //  - one pass under H with the radius of a precise alignment (a wider one takes the neighbours
   //    one period away on a repeated motif, and their consensus comes back);
   //  - evaluateHypothesis's last two passes (a radius of 2 px, a homography fitted to the matches,
   //    then max(2 px, its rms)), for an alignment that is right but not everywhere precise.
-  const double factor = opt.search_radius_factor;
+  const double factor = cx.opt.search_radius_factor;
   std::optional<MatchCandidate> best;
   auto consider = [&](const std::vector<LocalMatch>& m, int tested) {
     Candidate c;
@@ -635,10 +632,10 @@ std::optional<MatchCandidate> matchUnderHomography(const ReferenceIndex& ref, co
   if (static_cast<int>(m.size()) >= kPass1MinMatches) {
     std::vector<Vec2> a, b;
     for (const auto& x : m) {
-      a.push_back(pt(ref.features.keypoints[x.ref]));
-      b.push_back(pt(scene.keypoints[x.scene]));
+      a.push_back(pt(cx.ref.features.keypoints[x.ref]));
+      b.push_back(pt(cx.scene.keypoints[x.scene]));
     }
-    const HomographyResult h = estimateHomographyUnchecked(a, b, homographyOptions(opt));
+    const HomographyResult h = estimateHomographyUnchecked(a, b, homographyOptions(cx.opt));
     if (h.ok && static_cast<int>(h.inliers.size()) >= kPass1MinMatches) {
       const double e0 = std::max(kHomographyErrorPx, h.rms_px);
       localSearch(cx, Predictor::homography(h.H), nullptr, [&](const Vec2&) { return factor * e0; }, &m, &tested);
@@ -647,5 +644,27 @@ std::optional<MatchCandidate> matchUnderHomography(const ReferenceIndex& ref, co
   }
   return best;
 }
+
+}  // namespace
+
+std::optional<MatchCandidate> matchUnderHomography(const ReferenceIndex& ref, const Features& scene,
+                                                   const GridIndex& grid, const MatchOptions& opt,
+                                                   const Eigen::Matrix3d& H) {
+  return matchUnderHomographies(ref, scene, grid, opt, {H})[0];
+}
+
+std::vector<std::optional<MatchCandidate>> matchUnderHomographies(const ReferenceIndex& ref, const Features& scene,
+                                                                  const GridIndex& grid, const MatchOptions& opt,
+                                                                  const std::vector<Eigen::Matrix3d>& Hs) {
+  std::vector<std::optional<MatchCandidate>> out(Hs.size());
+  if (ref.features.size() < 4 || scene.size() < 4) return out;
+  MatchRejects rejects;
+  std::vector<NearestTwo> nn;
+  const Context cx = makeContext(ref, scene, grid, opt, &rejects, &nn);
+  for (size_t k = 0; k < Hs.size(); ++k)
+    if (Hs[k].allFinite()) out[k] = matchUnderHomographyIn(cx, Hs[k]);
+  return out;
+}
+
 
 }  // namespace refgrasp::detector

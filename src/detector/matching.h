@@ -153,5 +153,10 @@ MatchResult matchObjectUnchecked(const ReferenceIndex& ref, const Features& scen
 std::optional<MatchCandidate> matchUnderHomography(const ReferenceIndex& ref, const Features& scene,
                                                    const GridIndex& grid, const MatchOptions& opt,
                                                    const Eigen::Matrix3d& H);
+/// matchUnderHomography for several alignments at once (the frame's background model is
+/// measured once); out[k] for Hs[k].
+std::vector<std::optional<MatchCandidate>> matchUnderHomographies(const ReferenceIndex& ref, const Features& scene,
+                                                                  const GridIndex& grid, const MatchOptions& opt,
+                                                                  const std::vector<Eigen::Matrix3d>& Hs);
 
 }  // namespace refgrasp::detector

@@ -7,6 +7,7 @@
 
 #include "core/error.h"
 #include "core/geometry.h"
+#include "detector/homography.h"
 #include "detector/matching.h"
 
 namespace refgrasp::detector {
@@ -89,6 +90,48 @@ ReferenceIndex buildReferenceIndex(Features f, const std::vector<Vec2>& polygon,
 
 std::vector<NearestTwo> nearestTwo(const ReferenceIndex& ref, const Features& scene, KnnKernel kernel) {
   return nearestTwo(ref.descriptors, integerDescriptors(scene.descriptors, /*byte_split=*/false), kernel);
+}
+
+std::vector<Eigen::Vector2d> repeatPeriods(const ReferenceIndex& ref, int max_periods) {
+  const int n = ref.features.size();
+  if (n < 2 || ref.features.descriptors.empty()) return {};
+  constexpr double kLookAlike = 200;  // SIFT descriptor distance (norm ~512)
+  constexpr double kBin = 3;          // rectified units per vote bin
+  cv::Mat d;
+  ref.features.descriptors.convertTo(d, CV_32F);
+  cv::Mat gram = d * d.t();  // |a - b|^2 = |a|^2 + |b|^2 - 2 a.b
+  std::vector<Eigen::Vector2d> p(n);
+  for (int i = 0; i < n; ++i) {
+    const cv::Point2f& q = ref.features.keypoints[i].pt;
+    p[i] = applyHomography(ref.rectify_px, Eigen::Vector2d(q.x, q.y));
+  }
+  std::map<std::pair<long, long>, int> votes;
+  for (int i = 0; i < n; ++i) {
+    const cv::KeyPoint& ki = ref.features.keypoints[i];
+    for (int j = i + 1; j < n; ++j) {
+      const cv::KeyPoint& kj = ref.features.keypoints[j];
+      if (std::abs(kj.size - ki.size) > 0.3 * std::max(ki.size, kj.size)) continue;
+      if (std::hypot(kj.pt.x - ki.pt.x, kj.pt.y - ki.pt.y) < std::max(ki.size, kj.size)) continue;
+      const double d2 = gram.at<float>(i, i) + gram.at<float>(j, j) - 2.0 * gram.at<float>(i, j);
+      if (!(d2 < kLookAlike * kLookAlike)) continue;
+      const Eigen::Vector2d v = p[j] - p[i];
+      if (!v.allFinite()) continue;
+      const std::pair<long, long> key(std::lround(v.x() / kBin), std::lround(v.y() / kBin));
+      ++votes[key];
+      ++votes[{-key.first, -key.second}];
+    }
+  }
+  const int min_votes = std::max(4, n / 100);
+  std::vector<std::pair<int, std::pair<long, long>>> modes;
+  for (const auto& [key, count] : votes)
+    if (count >= min_votes) modes.push_back({count, key});
+  std::stable_sort(modes.begin(), modes.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+  std::vector<Eigen::Vector2d> out;
+  for (const auto& m : modes) {
+    if (static_cast<int>(out.size()) >= max_periods) break;
+    out.emplace_back(kBin * m.second.first, kBin * m.second.second);
+  }
+  return out;
 }
 
 }  // namespace refgrasp::detector

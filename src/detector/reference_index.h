@@ -43,4 +43,11 @@ ReferenceIndex buildReferenceIndex(Features ref_features,
 std::vector<NearestTwo> nearestTwo(const ReferenceIndex& ref, const Features& scene,
                                    KnnKernel kernel = KnnKernel::kAuto);
 
+/// The reference's repeat periods: displacements in the rectified pattern plane (ref.rectify_px
+/// units) that carry at least max(4, 1 %) of its features onto look-alikes (size within 30 %,
+/// SIFT descriptors closer than 200, farther apart than the feature's size), e.g. a facade's
+/// window spacing. Modes of 3-unit bins, strongest first, both signs of each, at most
+/// max_periods; empty for a pattern without repeats.
+std::vector<Eigen::Vector2d> repeatPeriods(const ReferenceIndex& ref, int max_periods = 6);
+
 }  // namespace refgrasp::detector

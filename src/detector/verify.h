@@ -33,7 +33,10 @@ struct VerifyOptions {
   /// room to move (half its diagonal), its features matched again there (matchUnderHomography),
   /// and the result replaces it when the features support it as well (as many inliers, or a
   /// log10 NFA as low) and it correlates better. A consensus one period off on a repeated motif
-  /// (a facade's windows) fits a stretched homography that passes every other check.
+  /// (a facade's windows) fits a stretched homography that passes every other check. Then, for a
+  /// reference with repeat periods (repeatPeriods), the instance moved by each period is matched
+  /// again too, and a distinct alignment with a more significant consensus (lower log10 NFA)
+  /// that correlates at least as well replaces it.
   bool realign = true;
   /// Throws std::invalid_argument "VerifyOptions.<field>: <problem>".
   void check() const;

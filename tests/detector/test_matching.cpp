@@ -10,6 +10,8 @@
 #include <random>
 #include <set>
 
+#include <opencv2/imgproc.hpp>
+
 #include "robot/sim/synthetic_scene.h"
 #include "detector/homography.h"
 #include "detector/matching.h"
@@ -388,6 +390,32 @@ TEST(Matching, MatchUnderAGivenHomographyRecoversTheInstanceOnlyWhereItIs) {
     EXPECT_FALSE(matchUnderHomography(ref, fc, gc, opt, Eigen::Matrix3d::Constant(NAN)).has_value());
     EXPECT_FALSE(matchUnderHomography(ref, Features{}, GridIndex(), opt, H).has_value());
   }
+}
+
+// repeatPeriods: a motif tiled with a period of 48 px gives +-(48, 0) and +-(0, 48) among its
+// strongest periods (the reference of a 2D-only object is its own rectified plane); a photograph
+// without repeats (fruits) gives none.
+TEST(Matching, RepeatPeriodsFindATiledMotifsSpacingAndNothingInAPhoto) {
+  cv::Mat tile(48, 48, CV_8UC1);
+  cv::RNG rng(3);
+  rng.fill(tile, cv::RNG::UNIFORM, 0, 255);
+  cv::GaussianBlur(tile, tile, cv::Size(0, 0), 2.0);
+  cv::normalize(tile, tile, 0, 255, cv::NORM_MINMAX);
+  cv::Mat tiled;
+  cv::repeat(tile, 4, 6, tiled);
+  const MatchOptions opt;
+  const std::vector<Vec2> periods = repeatPeriods(referenceFor(tiled, opt));
+  ASSERT_GE(periods.size(), 4u);
+  auto has = [&](const Vec2& v) {
+    for (const Vec2& p : periods)
+      if ((p - v).norm() <= 3) return true;
+    return false;
+  };
+  int found = 0;
+  for (const Vec2& v : {Vec2(48, 0), Vec2(-48, 0), Vec2(0, 48), Vec2(0, -48)}) found += has(v);
+  EXPECT_EQ(found, 4);
+  EXPECT_TRUE(repeatPeriods(referenceFor(loadMedia("photos/fruits_closeup.jpg"), opt)).empty());
+  EXPECT_TRUE(repeatPeriods(ReferenceIndex{}).empty());
 }
 
 }  // namespace
