@@ -270,13 +270,12 @@ MatchCandidate realign(const RegisteredObject& e, const DetectorOptions& opt, co
 // A repeated motif's other alignments (VerifyOptions::realign): cand moved by each of the
 // reference's repeat periods (in the rectified pattern plane), its features matched again there.
 // A distinct alignment (corners farther than the pose check allows) whose consensus is more
-// significant (lower log10 NFA) and whose warped reference correlates at least as well is
-// returned (nullopt: none), with its dense refinement in *dense: the matcher's search stops at
+// significant (lower log10 NFA) is returned (nullopt: none); the caller checks it like any
+// candidate and keeps it only if it correlates at least as well. The matcher's search stops at
 // its first candidate, which on a facade can be the consensus one window off.
 std::optional<MatchCandidate> alignAcrossPeriods(const RegisteredObject& e, const DetectorOptions& opt,
                                                  const MatchCandidate& cand, const Features& scene,
-                                                 const GridIndex& grid, const Intrinsics& camera,
-                                                 DenseRefineResult* dense) {
+                                                 const GridIndex& grid) {
   if (e.periods.empty()) return std::nullopt;
   const Eigen::Matrix3d& R = e.index.rectify_px;
   const Eigen::Matrix3d Ri = R.inverse();
@@ -301,12 +300,7 @@ std::optional<MatchCandidate> alignAcrossPeriods(const RegisteredObject& e, cons
     if (gap > distinct) best = &c;
   }
   if (!best) return std::nullopt;
-  const MatchCandidate& other = **best;
-  const VerifyResult v0 = verifyInstance(e.pyramid, verificationRegion(e, cand), scene.image, camera, cand.H, opt.verify);
-  const VerifyResult v1 = verifyInstance(e.pyramid, verificationRegion(e, other), scene.image, camera, other.H, opt.verify);
-  if (!(v1.ok && v1.correlation >= v0.correlation)) return std::nullopt;
-  *dense = refineDense(e, other.H, scene.image, camera, opt.dense);
-  return other;
+  return **best;
 }
 
 // What one object searches in a frame.
@@ -633,11 +627,11 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
       const Check c = check(cand, try_realign ? &dense : nullptr, &d);
       if (c == Check::kOk && try_realign) {
         // Only an instance that passed every check is compared with its repeat-period
-        // alignments, and one of them replaces it only when it passes them too.
-        DenseRefineResult other_dense;
-        const std::optional<MatchCandidate> other = alignAcrossPeriods(e, opt, cand, scene, x->grid, camera, &other_dense);
+        // alignments, and one of them replaces it only when it passes them too and its warped
+        // reference correlates at least as well.
+        const std::optional<MatchCandidate> other = alignAcrossPeriods(e, opt, cand, scene, x->grid);
         Detection od;
-        if (other && check(*other, &other_dense, &od) == Check::kOk) d = od;
+        if (other && check(*other, nullptr, &od) == Check::kOk && od.correlation >= d.correlation) d = od;
       }
       switch (c) {
         case Check::kOk:
