@@ -22,6 +22,14 @@ void DenseRefineOptions::check() const {
                   w + ".min_correlation", "must be in [-1, 1)");
   refgrasp::check(gauss_filter_size >= 1 && gauss_filter_size % 2 == 1, w + ".gauss_filter_size",
                   "must be odd and >= 1");
+  refgrasp::check(std::isfinite(normalize_sigma_px) && normalize_sigma_px >= 0 && normalize_sigma_px <= 64,
+                  w + ".normalize_sigma_px", "must be in [0, 64] (0: off)");
+  refgrasp::check(std::isfinite(raw_trusted_correlation) && raw_trusted_correlation >= -1 &&
+                      raw_trusted_correlation <= 1,
+                  w + ".raw_trusted_correlation", "must be in [-1, 1]");
+  refgrasp::check(std::isfinite(normalized_min_correlation) && normalized_min_correlation >= -1 &&
+                      normalized_min_correlation < 1,
+                  w + ".normalized_min_correlation", "must be in [-1, 1)");
   refgrasp::check(pose_grid >= 2, w + ".pose_grid", "must be >= 2");
   refgrasp::check(robust_block_px >= 2, w + ".robust_block_px", "must be >= 2");
   refgrasp::check(std::isfinite(robust_min_residual) && robust_min_residual > 0, w + ".robust_min_residual",
@@ -115,13 +123,22 @@ cv::Mat occlusionMask(const cv::Mat& templ, const cv::Mat& scene, const cv::Mat&
   return mask;
 }
 
-}  // namespace
+// DenseRefineOptions::normalize_sigma_px: (I - local mean) / sqrt(local variance + 5^2), CV_32F.
+cv::Mat normaliseLocally(const cv::Mat& in, double sigma) {
+  cv::Mat f, mean, var;
+  in.convertTo(f, CV_32F);
+  cv::GaussianBlur(f, mean, cv::Size(), sigma, sigma, cv::BORDER_REFLECT);
+  f -= mean;
+  cv::GaussianBlur(f.mul(f), var, cv::Size(), sigma, sigma, cv::BORDER_REFLECT);
+  cv::sqrt(var + 25.0f, var);
+  return f / var;
+}
 
-DenseRefineResult refineHomographyDense(const std::vector<cv::Mat>& ref_pyramid,
-                                        const cv::Mat& scene, const Eigen::Matrix3d& H,
-                                        const std::array<Eigen::Vector2d, 4>& pattern_rect,
-                                        const DenseRefineOptions& opt,
-                                        const std::vector<Eigen::Vector2d>* mask_polygon) {
+// One ECC refinement; normalise: on locally normalised intensities.
+DenseRefineResult refineOnce(const std::vector<cv::Mat>& ref_pyramid, const cv::Mat& scene,
+                             const Eigen::Matrix3d& H, const std::array<Eigen::Vector2d, 4>& pattern_rect,
+                             const DenseRefineOptions& opt, const std::vector<Eigen::Vector2d>* mask_polygon,
+                             bool normalise) {
   DenseRefineResult res;
   res.H = H;
   if (ref_pyramid.empty() || scene.empty() || scene.type() != CV_8UC1 || !H.allFinite()) return res;
@@ -207,15 +224,20 @@ DenseRefineResult refineHomographyDense(const std::vector<cv::Mat>& ref_pyramid,
   if (mask_polygon) cv::warpPerspective(mask, scene_poly_mask, warp, crect.size(), cv::INTER_NEAREST);
   const cv::TermCriteria stop(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, opt.max_iterations,
                               opt.epsilon);
+  cv::Mat templ = ref_pyramid[L](trect), scene_crop = scene(crect);
+  if (normalise) {
+    templ = normaliseLocally(templ, opt.normalize_sigma_px);
+    scene_crop = normaliseLocally(scene_crop, opt.normalize_sigma_px);
+  }
   try {
     res.correlation = cv::findTransformECC(
-        ref_pyramid[L](trect), scene(crect), warp, cv::MOTION_HOMOGRAPHY, stop,
+        templ, scene_crop, warp, cv::MOTION_HOMOGRAPHY, stop,
         mask_polygon ? cv::_InputArray(scene_poly_mask) : cv::_InputArray(cv::noArray()), opt.gauss_filter_size);
     // Robust: leave the occluded blocks out and align again, twice (the first warp was pulled
     // towards the occluder, so its residuals mark the occlusion only roughly).
     for (int round = 0; opt.robust && round < 2; ++round) {
       double seen = 0;
-      cv::Mat kept = occlusionMask(ref_pyramid[L](trect), scene(crect), warp, opt, mask, &seen);
+      cv::Mat kept = occlusionMask(templ, scene_crop, warp, opt, mask, &seen);
       res.masked_fraction = 1 - seen;
       if (seen < opt.robust_min_kept) return res;
       if (seen >= 0.98) break;
@@ -223,7 +245,7 @@ DenseRefineResult refineHomographyDense(const std::vector<cv::Mat>& ref_pyramid,
       // ECC's mask lives in the scene (input) image: the kept template moved there.
       cv::Mat scene_mask;
       cv::warpPerspective(kept, scene_mask, warp, crect.size(), cv::INTER_NEAREST);
-      res.correlation = cv::findTransformECC(ref_pyramid[L](trect), scene(crect), warp,
+      res.correlation = cv::findTransformECC(templ, scene_crop, warp,
                                              cv::MOTION_HOMOGRAPHY, stop, scene_mask,
                                              opt.gauss_filter_size);
     }
@@ -246,6 +268,19 @@ DenseRefineResult refineHomographyDense(const std::vector<cv::Mat>& ref_pyramid,
   res.ok = true;
   res.H = Hn / Hn(2, 2);
   return res;
+}
+
+}  // namespace
+
+DenseRefineResult refineHomographyDense(const std::vector<cv::Mat>& ref_pyramid,
+                                        const cv::Mat& scene, const Eigen::Matrix3d& H,
+                                        const std::array<Eigen::Vector2d, 4>& pattern_rect,
+                                        const DenseRefineOptions& opt,
+                                        const std::vector<Eigen::Vector2d>* mask_polygon) {
+  const DenseRefineResult raw = refineOnce(ref_pyramid, scene, H, pattern_rect, opt, mask_polygon, false);
+  if ((raw.ok && raw.correlation >= opt.raw_trusted_correlation) || !(opt.normalize_sigma_px > 0)) return raw;
+  const DenseRefineResult normalised = refineOnce(ref_pyramid, scene, H, pattern_rect, opt, mask_polygon, true);
+  return normalised.ok && normalised.correlation >= opt.normalized_min_correlation ? normalised : raw;
 }
 
 }  // namespace refgrasp::detector

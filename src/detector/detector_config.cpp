@@ -52,6 +52,9 @@ void visitFields(O& o, Visit&& v) {
   v("dense.max_corner_shift_px", o.dense.max_corner_shift_px);
   v("dense.min_correlation", o.dense.min_correlation);
   v("dense.gauss_filter_size", o.dense.gauss_filter_size);
+  v("dense.normalize_sigma_px", o.dense.normalize_sigma_px);
+  v("dense.raw_trusted_correlation", o.dense.raw_trusted_correlation);
+  v("dense.normalized_min_correlation", o.dense.normalized_min_correlation);
   v("dense.pose_grid", o.dense.pose_grid);
   v("dense.robust", o.dense.robust);
   v("dense.robust_block_px", o.dense.robust_block_px);
