@@ -199,3 +199,47 @@ TEST(RealisticSets, RealignmentTakesTheFacadeMatchedAPeriodOffBack) {
   EXPECT_GE(found_on, found_off + 8);
   EXPECT_GE(pose_on, pose_off + 5);
 }
+
+// The dense refinement's retry on locally normalised intensities (DenseRefineOptions::
+// normalize_sigma_px) on development frames: references photographed under other light, where
+// the raw ECC alignment converges off (or fails) and the refined pose misses 2 deg. One chunk of
+// consecutive frames and three single ones; seed 3 far_oblique/44 is one the retry loses (the
+// other planar pose of a small oblique facade), kept in on purpose.
+TEST(RealisticSets, TheNormalisedRetryGivesMorePosesWithinTwoDegrees) {
+  struct Chunk {
+    uint64_t seed;
+    const char* set;
+    int first, last;
+  };
+  const Chunk chunks[] = {{9, "photos", 19, 30}, {1, "procedural", 80, 81}, {3, "procedural", 63, 64},
+                          {3, "far_oblique", 44, 45}};
+  EvalOptions on, off;
+  for (EvalOptions* o : {&on, &off}) {
+    o->classic_own_sift = false;
+    o->cpu_time = false;
+  }
+  ASSERT_GT(on.detector.dense.normalize_sigma_px, 0);  // the default
+  off.detector.dense.normalize_sigma_px = 0;
+  int found_on = 0, found_off = 0, wrong_on = 0, wrong_off = 0, pose_on = 0, pose_off = 0, frames = 0;
+  for (const Chunk& c : chunks)
+    for (const RealisticSetSpec& spec : realisticSets(c.seed, 160)) {
+      if (spec.name != c.set) continue;
+      const RealisticSet set(spec);
+      const std::vector<FrameOutcome> a = evaluateSet(set, on, c.first, c.last);
+      const std::vector<FrameOutcome> b = evaluateSet(set, off, c.first, c.last);
+      ASSERT_EQ(a.size(), b.size());
+      for (size_t i = 0; i < a.size(); ++i) {
+        const MethodOutcome &ra = a[i].refgrasp, &rb = b[i].refgrasp;
+        ++frames;
+        found_on += ra.found, found_off += rb.found;
+        wrong_on += ra.reported && !ra.found, wrong_off += rb.reported && !rb.found;
+        pose_on += ra.pose_ok, pose_off += rb.pose_ok;
+        EXPECT_EQ(ra.found, rb.found) << spec.name << " seed " << c.seed << " frame " << a[i].frame;
+      }
+    }
+  std::printf("%d development frames: with the retry found %d, pose ok %d, wrong %d; raw only found %d, pose ok %d, "
+              "wrong %d\n", frames, found_on, pose_on, wrong_on, found_off, pose_off, wrong_off);
+  EXPECT_EQ(frames, 14);
+  EXPECT_EQ(wrong_on, wrong_off);
+  EXPECT_GE(pose_on, pose_off + 4);
+}
