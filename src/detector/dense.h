@@ -30,7 +30,7 @@ struct DenseRefineOptions {
   /// one gain and offset only; a photographed reference's light gradient, highlight and vignetting
   /// pull the raw alignment off while it still converges (DenseRefine.
   /// ANormalisedRetryAlignsAReferencePhotographedUnderOtherLight: raw 1.2-1.6 px off at
-  /// correlation 0.68-0.71, the retry within 0.1 px). Only a retry: on clean renders the raw
+  /// correlation 0.68-0.71, the retry within 0.16 px). Only a retry: on clean renders the raw
   /// alignment is the more precise one (always normalised, the worst rotation of
   /// Detector.DistortedSceneKeepsTheDenseRefinementAccuracy went from < 0.35 to 0.84 deg).
   /// 0: no retry.

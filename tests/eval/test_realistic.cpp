@@ -6,6 +6,8 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <string>
+#include <vector>
 #include <opencv2/imgproc.hpp>
 
 #include "detector/detector.h"
@@ -22,6 +24,49 @@ namespace {
 
 constexpr double kDeg = M_PI / 180;
 constexpr uint64_t kReportSeed = 1001;  // the report split (development used seed 1)
+
+// Development frames run with two option sets: the counts of each, and both outcomes per frame.
+struct Chunk {
+  uint64_t seed;
+  const char* set;
+  int first, last;  // frames [first, last)
+};
+struct FramePair {
+  std::string where;  // "<set> seed <seed> frame <i>"
+  MethodOutcome on, off;
+};
+struct OnOff {
+  int frames = 0, found_on = 0, found_off = 0, wrong_on = 0, wrong_off = 0, pose_on = 0, pose_off = 0;
+  std::vector<FramePair> pairs;
+};
+OnOff compareOnChunks(const std::vector<Chunk>& chunks, const EvalOptions& on, const EvalOptions& off) {
+  OnOff r;
+  for (const Chunk& c : chunks)
+    for (const RealisticSetSpec& spec : realisticSets(c.seed, 160)) {
+      if (spec.name != c.set) continue;
+      const RealisticSet set(spec);
+      const std::vector<FrameOutcome> a = evaluateSet(set, on, c.first, c.last);
+      const std::vector<FrameOutcome> b = evaluateSet(set, off, c.first, c.last);
+      EXPECT_EQ(a.size(), b.size());
+      for (size_t i = 0; i < std::min(a.size(), b.size()); ++i) {
+        const MethodOutcome &ra = a[i].refgrasp, &rb = b[i].refgrasp;
+        ++r.frames;
+        r.found_on += ra.found, r.found_off += rb.found;
+        r.wrong_on += ra.reported && !ra.found, r.wrong_off += rb.reported && !rb.found;
+        r.pose_on += ra.pose_ok, r.pose_off += rb.pose_ok;
+        r.pairs.push_back({spec.name + " seed " + std::to_string(c.seed) + " frame " + std::to_string(a[i].frame), ra, rb});
+      }
+    }
+  return r;
+}
+
+/// Evaluation without timing and without the classic pipeline's own SIFT (as --classic-fast).
+EvalOptions quickEvalOptions() {
+  EvalOptions o;
+  o.classic_own_sift = false;
+  o.cpu_time = false;
+  return o;
+}
 
 }  // namespace
 
@@ -158,46 +203,22 @@ TEST(RealisticSets, SmallPatternsGetThePlaneAffineMap) {
 // reports there stay (their photometric optimum is one period off as well, and the right
 // alignment, where it is a period away, has the weaker consensus).
 TEST(RealisticSets, RealignmentTakesTheFacadeMatchedAPeriodOffBack) {
-  struct Chunk {
-    uint64_t seed;
-    const char* set;
-    int first, last;
-  };
-  const Chunk chunks[] = {{3, "far_oblique", 5, 7},   {3, "far_oblique", 51, 52}, {5, "photos", 117, 118},
-                          {5, "photos", 151, 152},    {5, "far_oblique", 144, 145}, {9, "far_oblique", 74, 83},
-                          {11, "photos", 15, 16}};
-  EvalOptions on, off;
-  for (EvalOptions* o : {&on, &off}) {
-    o->classic_own_sift = false;
-    o->cpu_time = false;
-  }
+  const std::vector<Chunk> chunks = {{3, "far_oblique", 5, 7},   {3, "far_oblique", 51, 52}, {5, "photos", 117, 118},
+                                     {5, "photos", 151, 152},    {5, "far_oblique", 144, 145}, {9, "far_oblique", 74, 83},
+                                     {11, "photos", 15, 16}};
+  EvalOptions on = quickEvalOptions(), off = quickEvalOptions();
   ASSERT_TRUE(on.detector.verify.realign);  // the default
   off.detector.verify.realign = false;
-  int found_on = 0, found_off = 0, wrong_on = 0, wrong_off = 0, pose_on = 0, pose_off = 0, frames = 0;
-  for (const Chunk& c : chunks)
-    for (const RealisticSetSpec& spec : realisticSets(c.seed, 160)) {
-      if (spec.name != c.set) continue;
-      const RealisticSet set(spec);
-      const std::vector<FrameOutcome> a = evaluateSet(set, on, c.first, c.last);
-      const std::vector<FrameOutcome> b = evaluateSet(set, off, c.first, c.last);
-      ASSERT_EQ(a.size(), b.size());
-      for (size_t i = 0; i < a.size(); ++i) {
-        const MethodOutcome &ra = a[i].refgrasp, &rb = b[i].refgrasp;
-        ++frames;
-        found_on += ra.found, found_off += rb.found;
-        wrong_on += ra.reported && !ra.found, wrong_off += rb.reported && !rb.found;
-        pose_on += ra.pose_ok, pose_off += rb.pose_ok;
-        EXPECT_TRUE(ra.found || !rb.found) << spec.name << " seed " << c.seed << " frame " << a[i].frame
-                                           << ": found without the re-alignment, lost with it";
-      }
-    }
+  const OnOff r = compareOnChunks(chunks, on, off);
+  for (const FramePair& p : r.pairs)
+    EXPECT_TRUE(p.on.found || !p.off.found) << p.where << ": found without the re-alignment, lost with it";
   std::printf("%d development frames: re-alignment found %d, pose ok %d, wrong %d; without it found %d, pose ok %d, "
-              "wrong %d\n", frames, found_on, pose_on, wrong_on, found_off, pose_off, wrong_off);
-  EXPECT_EQ(frames, 16);
-  EXPECT_GE(wrong_off, 8);  // the data still shows the failure
-  EXPECT_EQ(wrong_on, 0);
-  EXPECT_GE(found_on, found_off + 8);
-  EXPECT_GE(pose_on, pose_off + 5);
+              "wrong %d\n", r.frames, r.found_on, r.pose_on, r.wrong_on, r.found_off, r.pose_off, r.wrong_off);
+  EXPECT_EQ(r.frames, 16);
+  EXPECT_GE(r.wrong_off, 8);  // the data still shows the failure
+  EXPECT_EQ(r.wrong_on, 0);
+  EXPECT_GE(r.found_on, r.found_off + 8);
+  EXPECT_GE(r.pose_on, r.pose_off + 5);
 }
 
 // The dense refinement's retry on locally normalised intensities (DenseRefineOptions::
@@ -206,40 +227,16 @@ TEST(RealisticSets, RealignmentTakesTheFacadeMatchedAPeriodOffBack) {
 // consecutive frames and three single ones; seed 3 far_oblique/44 is one the retry loses (the
 // other planar pose of a small oblique facade), kept in on purpose.
 TEST(RealisticSets, TheNormalisedRetryGivesMorePosesWithinTwoDegrees) {
-  struct Chunk {
-    uint64_t seed;
-    const char* set;
-    int first, last;
-  };
-  const Chunk chunks[] = {{9, "photos", 19, 30}, {1, "procedural", 80, 81}, {3, "procedural", 63, 64},
-                          {3, "far_oblique", 44, 45}};
-  EvalOptions on, off;
-  for (EvalOptions* o : {&on, &off}) {
-    o->classic_own_sift = false;
-    o->cpu_time = false;
-  }
+  const std::vector<Chunk> chunks = {{9, "photos", 19, 30}, {1, "procedural", 80, 81}, {3, "procedural", 63, 64},
+                                     {3, "far_oblique", 44, 45}};
+  EvalOptions on = quickEvalOptions(), off = quickEvalOptions();
   ASSERT_GT(on.detector.dense.normalize_sigma_px, 0);  // the default
   off.detector.dense.normalize_sigma_px = 0;
-  int found_on = 0, found_off = 0, wrong_on = 0, wrong_off = 0, pose_on = 0, pose_off = 0, frames = 0;
-  for (const Chunk& c : chunks)
-    for (const RealisticSetSpec& spec : realisticSets(c.seed, 160)) {
-      if (spec.name != c.set) continue;
-      const RealisticSet set(spec);
-      const std::vector<FrameOutcome> a = evaluateSet(set, on, c.first, c.last);
-      const std::vector<FrameOutcome> b = evaluateSet(set, off, c.first, c.last);
-      ASSERT_EQ(a.size(), b.size());
-      for (size_t i = 0; i < a.size(); ++i) {
-        const MethodOutcome &ra = a[i].refgrasp, &rb = b[i].refgrasp;
-        ++frames;
-        found_on += ra.found, found_off += rb.found;
-        wrong_on += ra.reported && !ra.found, wrong_off += rb.reported && !rb.found;
-        pose_on += ra.pose_ok, pose_off += rb.pose_ok;
-        EXPECT_EQ(ra.found, rb.found) << spec.name << " seed " << c.seed << " frame " << a[i].frame;
-      }
-    }
+  const OnOff r = compareOnChunks(chunks, on, off);
+  for (const FramePair& p : r.pairs) EXPECT_EQ(p.on.found, p.off.found) << p.where;
   std::printf("%d development frames: with the retry found %d, pose ok %d, wrong %d; raw only found %d, pose ok %d, "
-              "wrong %d\n", frames, found_on, pose_on, wrong_on, found_off, pose_off, wrong_off);
-  EXPECT_EQ(frames, 14);
-  EXPECT_EQ(wrong_on, wrong_off);
-  EXPECT_GE(pose_on, pose_off + 4);
+              "wrong %d\n", r.frames, r.found_on, r.pose_on, r.wrong_on, r.found_off, r.pose_off, r.wrong_off);
+  EXPECT_EQ(r.frames, 14);
+  EXPECT_EQ(r.wrong_on, r.wrong_off);
+  EXPECT_GE(r.pose_on, r.pose_off + 4);
 }
