@@ -235,36 +235,54 @@ PoseResult estimatePose(const RegisteredObject& e, const DetectorOptions& opt,
 // cand.H (opt.dense, as the refined pose runs it; returned in *dense) normally moves the pattern
 // by a pixel or two. When it converges well but wants to move a corner further than
 // dense.max_corner_shift_px, the features' alignment is doubtful: on a repeated motif (a
-// facade's windows) a consensus of matches one period off fits a stretched homography. Then
-// the alignment is refined again with room to move (half the pattern's diagonal), the features
-// are matched again under it (matchUnderHomography), and that candidate replaces cand when the
-// features support it as well (at least as many inliers, or a consensus at least as significant:
-// log10 NFA) and its warped reference agrees better with the scene (verifyInstance).
+// facade's windows) a consensus of matches one period off fits a stretched homography, and on a
+// small oblique target a few features fit one a few pixels off. Then the alignment is refined
+// again with room to move (half the pattern's diagonal), the features are matched again under it
+// (matchUnderHomography), and that candidate replaces cand when the features support it as well
+// (at least as many inliers, or a consensus at least as significant: log10 NFA) and its warped
+// reference agrees better with the scene (verifyInstance). Whichever candidate is kept, when its
+// own dense refinement is still refused for the distance, the wide refinement from it becomes
+// its alignment if it correlates at least verify.realign_trusted_correlation (H and *dense).
 MatchCandidate realign(const RegisteredObject& e, const DetectorOptions& opt, const MatchCandidate& cand,
                        const Features& scene, const GridIndex& grid, const Intrinsics& camera,
                        DenseRefineResult* dense) {
+  auto tooFar = [&](const DenseRefineResult& d) {
+    return !d.ok && d.corner_shift_px > opt.dense.max_corner_shift_px && d.correlation >= opt.dense.min_correlation;
+  };
+  // The refinement from H with room to move (ok = false when that room is not finite).
+  auto wideRefine = [&](const Eigen::Matrix3d& H) {
+    std::vector<Eigen::Vector2d> q;
+    for (const auto& c : e.corners_und_px) q.push_back(applyHomography(H, c));
+    const double diag = 0.5 * ((q[2] - q[0]).norm() + (q[3] - q[1]).norm());
+    DenseRefineOptions wide = opt.dense;
+    wide.max_corner_shift_px = std::max(wide.max_corner_shift_px, 0.5 * diag);
+    if (!std::isfinite(wide.max_corner_shift_px)) return DenseRefineResult{};
+    return refineDense(e, H, scene.image, camera, wide);
+  };
+  // c, aligned by its wide refinement w when w is trusted.
+  auto adopt = [&](const MatchCandidate& c, const DenseRefineResult& w) {
+    const double trusted = opt.verify.realign_trusted_correlation;
+    if (!(w.ok && trusted < 1 && w.correlation >= trusted)) return c;
+    MatchCandidate out = c;
+    out.H = w.H;
+    *dense = w;
+    return out;
+  };
   *dense = refineDense(e, cand.H, scene.image, camera, opt.dense);
-  if (dense->ok || !(dense->corner_shift_px > opt.dense.max_corner_shift_px) ||
-      !(dense->correlation >= opt.dense.min_correlation))
-    return cand;
-  std::vector<Eigen::Vector2d> q;
-  for (const auto& c : e.corners_und_px) q.push_back(applyHomography(cand.H, c));
-  const double diag = 0.5 * ((q[2] - q[0]).norm() + (q[3] - q[1]).norm());
-  DenseRefineOptions wide = opt.dense;
-  wide.max_corner_shift_px = std::max(wide.max_corner_shift_px, 0.5 * diag);
-  if (!std::isfinite(wide.max_corner_shift_px)) return cand;
-  const DenseRefineResult w = refineDense(e, cand.H, scene.image, camera, wide);
+  if (!tooFar(*dense)) return cand;
+  const DenseRefineResult w = wideRefine(cand.H);
   if (!w.ok) return cand;
   const std::optional<MatchCandidate> again = matchUnderHomography(e.index, scene, grid, opt.match, w.H);
-  if (!again) return cand;
+  if (!again) return adopt(cand, w);
   const bool supported = again->inliers.size() >= cand.inliers.size() ||
                          (std::isfinite(cand.log10_nfa) && again->log10_nfa <= cand.log10_nfa);
-  if (!supported) return cand;
+  if (!supported) return adopt(cand, w);
   const VerifyResult v0 = verifyInstance(e.pyramid, verificationRegion(e, cand), scene.image, camera, cand.H, opt.verify);
   const VerifyResult v1 = verifyInstance(e.pyramid, verificationRegion(e, *again), scene.image, camera, again->H, opt.verify);
-  if (!(v1.ok && v1.correlation > v0.correlation)) return cand;
+  if (!(v1.ok && v1.correlation > v0.correlation)) return adopt(cand, w);
   *dense = refineDense(e, again->H, scene.image, camera, opt.dense);
-  return *again;
+  if (!tooFar(*dense)) return *again;
+  return adopt(*again, wideRefine(again->H));
 }
 
 // A repeated motif's other alignments (VerifyOptions::realign): cand moved by each of the

@@ -70,6 +70,7 @@ void visitFields(O& o, Visit&& v) {
   v("verify.strong_correlation", o.verify.strong_correlation);
   v("verify.min_strong_cells", o.verify.min_strong_cells);
   v("verify.realign", o.verify.realign);
+  v("verify.realign_trusted_correlation", o.verify.realign_trusted_correlation);
 }
 
 // check() names fields "<Options>.<field>"; the file names them "<section>.<field>".

@@ -15,6 +15,9 @@ void VerifyOptions::check() const {
   refgrasp::check(compare_px >= 8 && compare_px <= 1024, "VerifyOptions.compare_px", "must be in [8, 1024]");
   refgrasp::check(std::isfinite(strong_correlation) && strong_correlation >= -1 && strong_correlation < 1,
                   "VerifyOptions.strong_correlation", "must be in [-1, 1)");
+  refgrasp::check(std::isfinite(realign_trusted_correlation) && realign_trusted_correlation >= 0 &&
+                      realign_trusted_correlation <= 1,
+                  "VerifyOptions.realign_trusted_correlation", "must be in [0, 1] (1: never)");
   refgrasp::check(min_strong_cells >= 0 && min_strong_cells <= 9, "VerifyOptions.min_strong_cells", "must be in [0, 9]");
 }
 

@@ -148,4 +148,12 @@ TEST(Acceptance, VerificationRefusesASiblingSharingALogo) {
   bad = VerifyOptions();
   bad.strong_correlation = NAN;
   EXPECT_THROW(bad.check(), std::invalid_argument);
+  for (double c : {-0.1, 1.5, static_cast<double>(NAN)}) {
+    bad = VerifyOptions();
+    bad.realign_trusted_correlation = c;
+    EXPECT_THROW(bad.check(), std::invalid_argument) << c;
+  }
+  bad = VerifyOptions();
+  bad.realign_trusted_correlation = 1;  // never: allowed
+  EXPECT_NO_THROW(bad.check());
 }

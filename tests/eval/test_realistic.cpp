@@ -143,50 +143,76 @@ TEST(RealisticSets, FalsePositivesOnPhotoClutterWithEveryObjectRegistered) {
 // where both find the pattern (measured: found 41 vs 39, pose ok 24 vs 20, wrong 0 vs 0, corner
 // median 1.07 vs 1.37 px; fitting the affine map to reference px, without the rectification,
 // fails found (38 vs 39) and the corner median (1.86 vs 1.37 px)).
+// The corners compared are those of the features' fit, so that comparison runs without the
+// trusted wide alignment (VerifyOptions::realign_trusted_correlation), which replaces a fit the
+// dense refinement refuses by ECC's alignment. Measured now: without it, found 42 vs 40, pose ok
+// 25 vs 21, corner median 1.07 vs 1.52 px; with it (the default) found 42 vs 40, pose ok 25 vs
+// 23, and the homography's corner median drops to 0.98 px (the affine map's 1.14): ECC now
+// corrects the homographies the affine map was there to avoid.
 TEST(RealisticSets, SmallPatternsGetThePlaneAffineMap) {
   constexpr uint64_t kSeed = 2001;
-  EvalOptions affine, homography;
-  for (EvalOptions* o : {&affine, &homography}) {
-    o->classic_own_sift = false;
-    o->cpu_time = false;
-    o->min_distance_bin = 3;
-  }
-  ASSERT_GT(affine.detector.match.affine_below_px, 0);  // the default
-  homography.detector.match.affine_below_px = 0;
-  int found_a = 0, found_h = 0, wrong_a = 0, wrong_h = 0, pose_a = 0, pose_h = 0, changed = 0;
-  std::vector<double> corner_a, corner_h;
-  for (const RealisticSetSpec& spec : realisticSets(kSeed, 100)) {
-    const RealisticSet set(spec);
-    const std::vector<FrameOutcome> a = evaluateSet(set, affine, 0, set.frames());
-    const std::vector<FrameOutcome> h = evaluateSet(set, homography, 0, set.frames());
-    ASSERT_EQ(a.size(), h.size());
-    for (size_t i = 0; i < a.size(); ++i) {
-      const MethodOutcome &ra = a[i].refgrasp, &rh = h[i].refgrasp;
-      found_a += ra.found, found_h += rh.found;
-      wrong_a += ra.reported && !ra.found, wrong_h += rh.reported && !rh.found;
-      pose_a += ra.pose_ok, pose_h += rh.pose_ok;
-      changed += ra.reported != rh.reported || ra.corner_px != rh.corner_px;
-      if (ra.found && rh.found) {
-        corner_a.push_back(ra.corner_px);
-        corner_h.push_back(rh.corner_px);
+  struct Counts {
+    int found = 0, wrong = 0, pose = 0;
+  };
+  // Affine vs homography with the given trusted wide alignment; the corners where both find it.
+  auto compare = [&](double trusted, Counts* a_out, Counts* h_out, std::vector<double>* corner_a,
+                     std::vector<double>* corner_h) {
+    EvalOptions affine, homography;
+    for (EvalOptions* o : {&affine, &homography}) {
+      o->classic_own_sift = false;
+      o->cpu_time = false;
+      o->min_distance_bin = 3;
+      o->detector.verify.realign_trusted_correlation = trusted;
+    }
+    EXPECT_GT(affine.detector.match.affine_below_px, 0);  // the default
+    homography.detector.match.affine_below_px = 0;
+    int changed = 0;
+    for (const RealisticSetSpec& spec : realisticSets(kSeed, 100)) {
+      const RealisticSet set(spec);
+      const std::vector<FrameOutcome> a = evaluateSet(set, affine, 0, set.frames());
+      const std::vector<FrameOutcome> h = evaluateSet(set, homography, 0, set.frames());
+      EXPECT_EQ(a.size(), h.size());
+      for (size_t i = 0; i < std::min(a.size(), h.size()); ++i) {
+        const MethodOutcome &ra = a[i].refgrasp, &rh = h[i].refgrasp;
+        a_out->found += ra.found, h_out->found += rh.found;
+        a_out->wrong += ra.reported && !ra.found, h_out->wrong += rh.reported && !rh.found;
+        a_out->pose += ra.pose_ok, h_out->pose += rh.pose_ok;
+        changed += ra.reported != rh.reported || ra.corner_px != rh.corner_px;
+        if (ra.found && rh.found) {
+          corner_a->push_back(ra.corner_px);
+          corner_h->push_back(rh.corner_px);
+        }
       }
     }
-  }
+    return changed;
+  };
   auto median = [](std::vector<double> v) {
+    if (v.empty()) return std::nan("");
     std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
     return v[v.size() / 2];
   };
-  ASSERT_FALSE(corner_a.empty());
+  // The default detector: the affine map finds and poses at least as many, no more wrong.
+  Counts a, h;
+  std::vector<double> corner_a, corner_h;
+  const int changed = compare(EvalOptions().detector.verify.realign_trusted_correlation, &a, &h, &corner_a, &corner_h);
+  // The features' fits alone: the affine map's corners are the closer.
+  Counts fa, fh;
+  std::vector<double> fit_a, fit_h;
+  compare(1.0, &fa, &fh, &fit_a, &fit_h);
+  ASSERT_FALSE(fit_a.empty());
   std::printf("far bins, seed %llu: plane-affine found %d, pose ok %d, wrong %d, corner median %.2f px; "
               "homography found %d, pose ok %d, wrong %d, corner median %.2f px (%zu found by both); %d frames "
-              "changed\n",
-              static_cast<unsigned long long>(kSeed), found_a, pose_a, wrong_a, median(corner_a), found_h, pose_h,
-              wrong_h, median(corner_h), corner_a.size(), changed);
+              "changed; features' fits alone: corner median %.2f vs %.2f px (%zu found by both)\n",
+              static_cast<unsigned long long>(kSeed), a.found, a.pose, a.wrong, median(corner_a), h.found, h.pose,
+              h.wrong, median(corner_h), corner_a.size(), changed, median(fit_a), median(fit_h), fit_a.size());
   EXPECT_GT(changed, 0);
-  EXPECT_LE(wrong_a, wrong_h);
-  EXPECT_GE(found_a, found_h);
-  EXPECT_GE(pose_a, pose_h);
-  EXPECT_LE(median(corner_a), median(corner_h));
+  EXPECT_LE(a.wrong, h.wrong);
+  EXPECT_GE(a.found, h.found);
+  EXPECT_GE(a.pose, h.pose);
+  EXPECT_LE(fa.wrong, fh.wrong);
+  EXPECT_GE(fa.found, fh.found);
+  EXPECT_GE(fa.pose, fh.pose);
+  EXPECT_LE(median(fit_a), median(fit_h));
 }
 
 // The photometric re-alignment (VerifyOptions::realign) on the development frames where a
@@ -239,4 +265,33 @@ TEST(RealisticSets, TheNormalisedRetryGivesMorePosesWithinTwoDegrees) {
   EXPECT_EQ(r.frames, 14);
   EXPECT_EQ(r.wrong_on, r.wrong_off);
   EXPECT_GE(r.pose_on, r.pose_off + 4);
+}
+
+// The trusted wide alignment (VerifyOptions::realign_trusted_correlation) on development frames:
+// small oblique targets whose few features fit a homography several pixels off, which the dense
+// refinement refuses to move that far. Re-run with room to move, ECC converges within a pixel at
+// correlation >= 0.9 and becomes the instance's alignment. Seed 21 far_oblique/21 is a magazine
+// the features put 11 px off (a wrong report) that the wide alignment puts 2 px off.
+TEST(RealisticSets, ATrustedWideAlignmentCorrectsFewFeatureFits) {
+  const std::vector<Chunk> chunks = {{21, "far_oblique", 21, 22}, {9, "far_oblique", 66, 67}, {1, "far_oblique", 116, 117},
+                                     {13, "far_oblique", 140, 141}, {19, "far_oblique", 126, 127}, {11, "far_oblique", 4, 5}};
+  EvalOptions on = quickEvalOptions(), off = quickEvalOptions();
+  ASSERT_LT(on.detector.verify.realign_trusted_correlation, 1);  // the default
+  off.detector.verify.realign_trusted_correlation = 1;
+  const OnOff r = compareOnChunks(chunks, on, off);
+  double corner_on = 0, corner_off = 0;
+  for (const FramePair& p : r.pairs) {
+    EXPECT_TRUE(p.on.reported && p.off.reported) << p.where;
+    EXPECT_LT(p.on.corner_px, p.off.corner_px) << p.where;
+    EXPECT_LT(p.on.corner_px, 2.0) << p.where;
+    corner_on += p.on.corner_px / r.pairs.size();
+    corner_off += p.off.corner_px / r.pairs.size();
+  }
+  std::printf("%d development frames: trusted wide alignment found %d, pose ok %d, wrong %d, mean corner %.2f px; "
+              "features' alignment found %d, pose ok %d, wrong %d, mean corner %.2f px\n", r.frames, r.found_on, r.pose_on,
+              r.wrong_on, corner_on, r.found_off, r.pose_off, r.wrong_off, corner_off);
+  EXPECT_EQ(r.frames, 6);
+  EXPECT_EQ(r.wrong_off, 1);  // the magazine, 11 px off
+  EXPECT_EQ(r.wrong_on, 0);
+  EXPECT_GE(r.pose_on, r.pose_off + 2);
 }
