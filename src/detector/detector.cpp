@@ -636,7 +636,7 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
       }
       return Check::kOk;
     };
-    for (const MatchCandidate& matched : m.instances) {
+    auto consider = [&](const MatchCandidate& matched) {
       DenseRefineResult dense;
       const bool try_realign = x && e.model.target && e.dense_usable && opt.verify.enabled && opt.verify.realign &&
                                !scene.image.empty();
@@ -672,6 +672,24 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
         case Check::kNotVerified:
           ++verify_failures;
           break;
+      }
+    };
+    for (const MatchCandidate& matched : m.instances) consider(matched);
+    // The matcher's search ends once it has max_instances candidates. When every one of them
+    // failed the checks (on a facade, a consensus one window off that the pose check refuses),
+    // the matcher is asked for one more (verify.spare_candidate) and the new ones are checked
+    // the same way; frames where a candidate passes, or where there was none, pay nothing.
+    if (found == 0 && x && opt.verify.enabled && opt.verify.spare_candidate && !m.instances.empty() &&
+        static_cast<int>(m.instances.size()) >= opt.match.max_instances) {
+      const auto t_spare = Clock::now();
+      MatchOptions more = opt.match;
+      ++more.max_instances;
+      const MatchResult spare = matchObjectUnchecked(e.index, scene, x->grid, more);
+      res.time_ms.match += msSince(t_spare);
+      for (const MatchCandidate& c : spare.instances) {
+        const bool tried = std::any_of(m.instances.begin(), m.instances.end(),
+                                       [&](const MatchCandidate& o) { return o.H == c.H; });
+        if (!tried) consider(c);
       }
     }
     if (found == 0) {

@@ -71,6 +71,7 @@ void visitFields(O& o, Visit&& v) {
   v("verify.min_strong_cells", o.verify.min_strong_cells);
   v("verify.realign", o.verify.realign);
   v("verify.realign_trusted_correlation", o.verify.realign_trusted_correlation);
+  v("verify.spare_candidate", o.verify.spare_candidate);
 }
 
 // check() names fields "<Options>.<field>"; the file names them "<section>.<field>".

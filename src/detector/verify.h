@@ -46,6 +46,11 @@ struct VerifyOptions {
   /// alignment at >= 0.9 had the better corners 3 times in 4 (typically from 2-8 px to under 1),
   /// and fixed a magazine reported 11 px off. 1: never (the features' alignment is kept).
   double realign_trusted_correlation = 0.9;
+  /// When every candidate the matcher returned (match.max_instances of them) fails the checks,
+  /// ask it for one more and check the new one too: the search stops at its first candidates,
+  /// and on a facade the first can be a consensus one window off that the pose check refuses
+  /// while the right one, with fewer matches, comes next.
+  bool spare_candidate = true;
   /// Throws std::invalid_argument "VerifyOptions.<field>: <problem>".
   void check() const;
 };

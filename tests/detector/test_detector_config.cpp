@@ -98,6 +98,7 @@ TEST(DetectorConfig, BadFilesGiveOneLineErrorsNamingTheField) {
       {"range3.yaml", "dense: {gauss_filter_size: 4}\n", "dense.gauss_filter_size: must be odd and >= 1"},
       {"range3b.yaml", "dense: {normalize_sigma_px: 100}\n", "dense.normalize_sigma_px: must be in [0, 64] (0: off)"},
       {"range3c.yaml", "verify: {realign_trusted_correlation: 1.2}\n", "verify.realign_trusted_correlation: must be in [0, 1] (1: never)"},
+      {"bool2.yaml", "verify: {spare_candidate: 2}\n", "verify.spare_candidate: expected true or false"},
       {"range4.yaml", "pose_options: {huber_px: -1}\n", "pose_options.huber_px: must be finite and >= 0"},
       {"range5.yaml", "sift: {octave_layers: 0}\n", "sift.octave_layers: must be in [1, 10]"},
       {"seed.yaml", "match: {seed: -1}\n", "match.seed: expected an integer in [0, 2^53]"},
