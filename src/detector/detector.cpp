@@ -321,6 +321,60 @@ std::optional<MatchCandidate> alignAcrossPeriods(const RegisteredObject& e, cons
   return **best;
 }
 
+// Repeat-period ambiguity (VerifyOptions::period_ambiguity_*): cand, which passed every check,
+// moved by each of the reference's repeat periods and aligned there photometrically (dense
+// refinement with room to move: 0.3 x its diagonal). Ambiguous when one of those alignments
+// agrees with the scene clearly better than cand itself (verifyInstance: correlation higher by
+// more than the margin and at least period_ambiguity_cells more strong cells); `better` is then
+// the best such alignment when it agrees strongly everywhere (9 strong cells, correlation >=
+// period_switch_correlation).
+struct PeriodTest {
+  bool ambiguous = false;
+  std::optional<DenseRefineResult> better;
+};
+PeriodTest periodTest(const RegisteredObject& e, const DetectorOptions& opt, const MatchCandidate& cand,
+                      const Features& scene, const Intrinsics& camera) {
+  PeriodTest out;
+  if (e.periods.empty() || opt.verify.period_ambiguity_cells > 9) return out;
+  const Eigen::Matrix3d& R = e.index.rectify_px;
+  const Eigen::Matrix3d Ri = R.inverse();
+  if (!Ri.allFinite()) return out;
+  const std::vector<Eigen::Vector2d> region = verificationRegion(e, cand);
+  const VerifyResult v0 = verifyInstance(e.pyramid, region, scene.image, camera, cand.H, opt.verify);
+  if (!v0.ok) return out;
+  std::array<Eigen::Vector2d, 4> q;
+  for (int i = 0; i < 4; ++i) q[i] = applyHomography(cand.H, e.corners_und_px[i]);
+  DenseRefineOptions wide = opt.dense;
+  wide.max_corner_shift_px = 0.3 * 0.5 * ((q[2] - q[0]).norm() + (q[3] - q[1]).norm());
+  if (!std::isfinite(wide.max_corner_shift_px)) return out;
+  VerifyResult best;
+  for (const Eigen::Vector2d& d : e.periods) {
+    Eigen::Matrix3d T = Eigen::Matrix3d::Identity();
+    T(0, 2) = d.x();
+    T(1, 2) = d.y();
+    const Eigen::Matrix3d Hp = cand.H * Ri * T * R;
+    VerifyResult v = verifyInstance(e.pyramid, region, scene.image, camera, Hp, opt.verify);
+    const DenseRefineResult dr = refineDense(e, Hp, scene.image, camera, wide);
+    bool refined = false;
+    if (dr.ok) {
+      const VerifyResult vr = verifyInstance(e.pyramid, region, scene.image, camera, dr.H, opt.verify);
+      if (vr.correlation > v.correlation) {
+        v = vr;
+        refined = true;
+      }
+    }
+    if (!(v.ok && v.correlation > v0.correlation + opt.verify.period_ambiguity_margin &&
+          v.strong_cells >= v0.strong_cells + opt.verify.period_ambiguity_cells))
+      continue;
+    if (out.ambiguous && !(v.correlation > best.correlation)) continue;
+    out.ambiguous = true;
+    best = v;
+    out.better.reset();
+    if (refined && v.strong_cells >= 9 && v.correlation >= opt.verify.period_switch_correlation) out.better = dr;
+  }
+  return out;
+}
+
 // What one object searches in a frame.
 struct Search {
   bool searched = true;  // false: only_priors and no prior
@@ -642,14 +696,35 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
                                !scene.image.empty();
       const MatchCandidate cand = try_realign ? realign(e, opt, matched, scene, x->grid, camera, &dense) : matched;
       Detection d;
-      const Check c = check(cand, try_realign ? &dense : nullptr, &d);
+      Check c = check(cand, try_realign ? &dense : nullptr, &d);
       if (c == Check::kOk && try_realign) {
         // Only an instance that passed every check is compared with its repeat-period
         // alignments, and one of them replaces it only when it passes them too and its warped
         // reference correlates at least as well.
         const std::optional<MatchCandidate> other = alignAcrossPeriods(e, opt, cand, scene, x->grid);
         Detection od;
-        if (other && check(*other, nullptr, &od) == Check::kOk && od.correlation >= d.correlation) d = od;
+        const MatchCandidate* kept = &cand;
+        if (other && check(*other, nullptr, &od) == Check::kOk && od.correlation >= d.correlation) {
+          d = od;
+          kept = &*other;
+        }
+        // The kept one is refused when a period away it would agree clearly better, unless that
+        // alignment agrees strongly everywhere, its features match there and it passes every check:
+        // then it replaces it.
+        const PeriodTest pt = periodTest(e, opt, *kept, scene, camera);
+        if (pt.ambiguous) {
+          c = Check::kNotVerified;
+          std::optional<MatchCandidate> moved;
+          if (pt.better) moved = matchUnderHomography(e.index, scene, x->grid, opt.match, pt.better->H);
+          Detection md;
+          if (moved) {
+            moved->H = pt.better->H;
+            if (check(*moved, &*pt.better, &md) == Check::kOk) {
+              d = md;
+              c = Check::kOk;
+            }
+          }
+        }
       }
       switch (c) {
         case Check::kOk:

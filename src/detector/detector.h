@@ -111,7 +111,7 @@ enum class MissReason {
   kPoseFailed,             ///< no candidate's pose could be estimated
   kSanity,                 ///< every candidate failed the sanity check (ObjectStats::sanity)
   kNotSignificant,         ///< the best consensus was not significant (log10 NFA too high)
-  kNotVerified,            ///< every candidate's warped reference disagreed with the scene
+  kNotVerified,            ///< every candidate's warped reference disagreed with the scene (or agreed clearly better a repeat period away)
 };
 const char* missReasonName(MissReason r);
 

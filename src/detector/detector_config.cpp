@@ -72,6 +72,9 @@ void visitFields(O& o, Visit&& v) {
   v("verify.realign", o.verify.realign);
   v("verify.realign_trusted_correlation", o.verify.realign_trusted_correlation);
   v("verify.spare_candidate", o.verify.spare_candidate);
+  v("verify.period_ambiguity_margin", o.verify.period_ambiguity_margin);
+  v("verify.period_ambiguity_cells", o.verify.period_ambiguity_cells);
+  v("verify.period_switch_correlation", o.verify.period_switch_correlation);
 }
 
 // check() names fields "<Options>.<field>"; the file names them "<section>.<field>".

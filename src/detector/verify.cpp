@@ -18,6 +18,14 @@ void VerifyOptions::check() const {
   refgrasp::check(std::isfinite(realign_trusted_correlation) && realign_trusted_correlation >= 0 &&
                       realign_trusted_correlation <= 1,
                   "VerifyOptions.realign_trusted_correlation", "must be in [0, 1] (1: never)");
+  refgrasp::check(std::isfinite(period_ambiguity_margin) && period_ambiguity_margin >= 0 &&
+                      period_ambiguity_margin <= 2,
+                  "VerifyOptions.period_ambiguity_margin", "must be in [0, 2]");
+  refgrasp::check(std::isfinite(period_switch_correlation) && period_switch_correlation >= -1 &&
+                      period_switch_correlation <= 1.01,
+                  "VerifyOptions.period_switch_correlation", "must be in [-1, 1.01] (1.01: never)");
+  refgrasp::check(period_ambiguity_cells >= 1 && period_ambiguity_cells <= 10, "VerifyOptions.period_ambiguity_cells",
+                  "must be in [1, 10] (10: never)");
   refgrasp::check(min_strong_cells >= 0 && min_strong_cells <= 9, "VerifyOptions.min_strong_cells", "must be in [0, 9]");
 }
 

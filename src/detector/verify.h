@@ -51,6 +51,22 @@ struct VerifyOptions {
   /// and on a facade the first can be a consensus one window off that the pose check refuses
   /// while the right one, with fewer matches, comes next.
   bool spare_candidate = true;
+  /// Repeat-period ambiguity (3D objects whose reference has repeat periods, with realign): an
+  /// instance that passed every check is moved by each repeat period, aligned there
+  /// photometrically (dense refinement with room to move, 0.3 x its diagonal) and verified
+  /// (verifyInstance). When one of those alignments agrees with the scene clearly better than
+  /// the instance itself (correlation higher by more than period_ambiguity_margin and at least
+  /// period_ambiguity_cells more strong cells), the features' alignment is in doubt and the
+  /// instance is refused (a miss, "not verified"): on a facade a consensus one window off passes
+  /// every other check, and a confident wrong answer is worse than a miss. On the development
+  /// seeds every such wrong report had fewer strong cells than the truth. period_ambiguity_cells
+  /// > 9: never.
+  double period_ambiguity_margin = 0.01;
+  int period_ambiguity_cells = 2;
+  /// ... unless that alignment agrees strongly everywhere (9 strong cells, correlation >= this),
+  /// the features match again under it (matchUnderHomography) and it passes every check: then it
+  /// replaces the instance (homography and pose from the alignment). 1.01: never (refuse only).
+  double period_switch_correlation = 0.95;
   /// Throws std::invalid_argument "VerifyOptions.<field>: <problem>".
   void check() const;
 };

@@ -5,8 +5,10 @@
 
 #include <cmath>
 #include <cstdio>
+#include <initializer_list>
 #include <opencv2/imgproc.hpp>
 #include <random>
+#include <type_traits>
 
 #include "detector/detector.h"
 #include "detector/homography.h"
@@ -142,18 +144,22 @@ TEST(Acceptance, VerificationRefusesASiblingSharingALogo) {
     EXPECT_FALSE(v_fake.ok) << k << ": " << v_fake.correlation << ", " << v_fake.strong_cells << " strong cells";
   }
   std::printf("siblings refused %d/%d, true patterns accepted %d/%d\n", refused, cases, accepted, cases);
-  VerifyOptions bad;
-  bad.min_strong_cells = 10;
-  EXPECT_THROW(bad.check(), std::invalid_argument);
-  bad = VerifyOptions();
-  bad.strong_correlation = NAN;
-  EXPECT_THROW(bad.check(), std::invalid_argument);
-  for (double c : {-0.1, 1.5, static_cast<double>(NAN)}) {
-    bad = VerifyOptions();
-    bad.realign_trusted_correlation = c;
-    EXPECT_THROW(bad.check(), std::invalid_argument) << c;
-  }
-  bad = VerifyOptions();
-  bad.realign_trusted_correlation = 1;  // never: allowed
-  EXPECT_NO_THROW(bad.check());
+  // check(): each field's values out of range throw, its "never" value does not.
+  auto checks = [](auto field, std::initializer_list<double> refused, double allowed) {
+    for (double x : refused) {
+      VerifyOptions o;
+      o.*field = static_cast<std::remove_reference_t<decltype(o.*field)>>(x);
+      EXPECT_THROW(o.check(), std::invalid_argument) << x;
+    }
+    VerifyOptions o;
+    o.*field = static_cast<std::remove_reference_t<decltype(o.*field)>>(allowed);
+    EXPECT_NO_THROW(o.check()) << allowed;
+  };
+  const double nan = NAN, inf = INFINITY;
+  checks(&VerifyOptions::min_strong_cells, {10, -1}, 9);
+  checks(&VerifyOptions::strong_correlation, {nan, 1}, 0.7);
+  checks(&VerifyOptions::realign_trusted_correlation, {-0.1, 1.5, nan}, 1);
+  checks(&VerifyOptions::period_ambiguity_margin, {-0.01, 2.5, nan, inf}, 0);
+  checks(&VerifyOptions::period_ambiguity_cells, {0, -1, 11}, 10);
+  checks(&VerifyOptions::period_switch_correlation, {-1.5, 1.02, nan}, 1.01);
 }

@@ -315,3 +315,32 @@ TEST(RealisticSets, ASpareCandidateIsCheckedWhenTheFirstFails) {
   EXPECT_EQ(r.frames, 2);
   EXPECT_EQ(r.wrong_on, 0);
 }
+
+// The repeat-period ambiguity test (VerifyOptions::period_ambiguity_*) on development frames: a
+// facade whose features agreed one window period off (reported 10-13 px off, wrong) while the
+// alignment one period away agrees strongly everywhere: that alignment replaces it. Seed 11
+// photos/15 is a right report that the same test moves to the better alignment (it stays
+// right); seed 9 far_oblique/51 is a right report it refuses (the alignment a period away
+// correlates better, 8 strong cells of 9, but is 15 px off), kept in on purpose.
+TEST(RealisticSets, ARepeatPeriodAwayThatAgreesBetterReplacesOrRefusesAFacade) {
+  const std::vector<Chunk> chunks = {{13, "far_oblique", 82, 83}, {19, "far_oblique", 82, 83},
+                                     {11, "photos", 15, 16}, {9, "far_oblique", 51, 52}};
+  EvalOptions on = quickEvalOptions(), off = quickEvalOptions();
+  ASSERT_LE(on.detector.verify.period_ambiguity_cells, 9);  // the default: on
+  off.detector.verify.period_ambiguity_cells = 10;
+  const OnOff r = compareOnChunks(chunks, on, off);
+  ASSERT_EQ(r.pairs.size(), 4u);
+  for (int i = 0; i < 2; ++i) {
+    EXPECT_TRUE(r.pairs[i].off.reported && !r.pairs[i].off.found) << r.pairs[i].where << ": no longer wrong without the test";
+    EXPECT_TRUE(r.pairs[i].on.found) << r.pairs[i].where;
+    EXPECT_LT(r.pairs[i].on.corner_px, 2.0) << r.pairs[i].where;
+  }
+  EXPECT_TRUE(r.pairs[2].on.found && r.pairs[2].off.found) << r.pairs[2].where;
+  EXPECT_FALSE(r.pairs[3].on.reported) << r.pairs[3].where;
+  EXPECT_TRUE(r.pairs[3].off.found) << r.pairs[3].where;
+  std::printf("%d development frames: with the period test found %d, pose ok %d, wrong %d; without it found %d, "
+              "pose ok %d, wrong %d\n", r.frames, r.found_on, r.pose_on, r.wrong_on, r.found_off, r.pose_off, r.wrong_off);
+  EXPECT_EQ(r.wrong_off, 2);
+  EXPECT_EQ(r.wrong_on, 0);
+  EXPECT_EQ(r.found_on, 3);
+}
