@@ -231,6 +231,29 @@ PoseResult estimatePose(const RegisteredObject& e, const DetectorOptions& opt,
   return estimatePoseRefined(X, y, target, camera.K(), opt.pose_options, sigma);
 }
 
+// The pattern's diagonal under H (undistorted scene px): the mean of its two corner diagonals.
+double patternDiagonal(const RegisteredObject& e, const Eigen::Matrix3d& H) {
+  std::array<Eigen::Vector2d, 4> q;
+  for (int i = 0; i < 4; ++i) q[i] = applyHomography(H, e.corners_und_px[i]);
+  return 0.5 * ((q[2] - q[0]).norm() + (q[3] - q[1]).norm());
+}
+
+// H moved by each of the reference's repeat periods (displacements in its rectified plane,
+// e.index.rectify_px); empty without periods or with a singular rectification.
+std::vector<Eigen::Matrix3d> movedByPeriods(const RegisteredObject& e, const Eigen::Matrix3d& H) {
+  std::vector<Eigen::Matrix3d> moved;
+  const Eigen::Matrix3d& R = e.index.rectify_px;
+  const Eigen::Matrix3d Ri = R.inverse();
+  if (e.periods.empty() || !Ri.allFinite()) return moved;
+  for (const Eigen::Vector2d& d : e.periods) {
+    Eigen::Matrix3d T = Eigen::Matrix3d::Identity();
+    T(0, 2) = d.x();
+    T(1, 2) = d.y();
+    moved.push_back(H * Ri * T * R);
+  }
+  return moved;
+}
+
 // Photometric re-alignment of a candidate (VerifyOptions::realign). The dense refinement of
 // cand.H (opt.dense, as the refined pose runs it; returned in *dense) normally moves the pattern
 // by a pixel or two. When it converges well but wants to move a corner further than
@@ -251,11 +274,8 @@ MatchCandidate realign(const RegisteredObject& e, const DetectorOptions& opt, co
   };
   // The refinement from H with room to move (ok = false when that room is not finite).
   auto wideRefine = [&](const Eigen::Matrix3d& H) {
-    std::vector<Eigen::Vector2d> q;
-    for (const auto& c : e.corners_und_px) q.push_back(applyHomography(H, c));
-    const double diag = 0.5 * ((q[2] - q[0]).norm() + (q[3] - q[1]).norm());
     DenseRefineOptions wide = opt.dense;
-    wide.max_corner_shift_px = std::max(wide.max_corner_shift_px, 0.5 * diag);
+    wide.max_corner_shift_px = std::max(wide.max_corner_shift_px, 0.5 * patternDiagonal(e, H));
     if (!std::isfinite(wide.max_corner_shift_px)) return DenseRefineResult{};
     return refineDense(e, H, scene.image, camera, wide);
   };
@@ -294,21 +314,11 @@ MatchCandidate realign(const RegisteredObject& e, const DetectorOptions& opt, co
 std::optional<MatchCandidate> alignAcrossPeriods(const RegisteredObject& e, const DetectorOptions& opt,
                                                  const MatchCandidate& cand, const Features& scene,
                                                  const GridIndex& grid) {
-  if (e.periods.empty()) return std::nullopt;
-  const Eigen::Matrix3d& R = e.index.rectify_px;
-  const Eigen::Matrix3d Ri = R.inverse();
-  if (!Ri.allFinite()) return std::nullopt;
-  std::vector<Eigen::Matrix3d> moved;
-  for (const Eigen::Vector2d& d : e.periods) {
-    Eigen::Matrix3d T = Eigen::Matrix3d::Identity();
-    T(0, 2) = d.x();
-    T(1, 2) = d.y();
-    moved.push_back(cand.H * Ri * T * R);
-  }
+  const std::vector<Eigen::Matrix3d> moved = movedByPeriods(e, cand.H);
+  if (moved.empty()) return std::nullopt;
   std::array<Eigen::Vector2d, 4> q;
   for (int i = 0; i < 4; ++i) q[i] = applyHomography(cand.H, e.corners_und_px[i]);
-  const double diag = 0.5 * ((q[2] - q[0]).norm() + (q[3] - q[1]).norm());
-  const double distinct = std::max(kMaxPoseGapPx, kMaxPoseGapFraction * diag);
+  const double distinct = std::max(kMaxPoseGapPx, kMaxPoseGapFraction * patternDiagonal(e, cand.H));
   const std::optional<MatchCandidate>* best = nullptr;
   const auto found = matchUnderHomographies(e.index, scene, grid, opt.match, moved);
   for (const auto& c : found) {
@@ -335,24 +345,17 @@ struct PeriodTest {
 PeriodTest periodTest(const RegisteredObject& e, const DetectorOptions& opt, const MatchCandidate& cand,
                       const Features& scene, const Intrinsics& camera) {
   PeriodTest out;
-  if (e.periods.empty() || opt.verify.period_ambiguity_cells > 9) return out;
-  const Eigen::Matrix3d& R = e.index.rectify_px;
-  const Eigen::Matrix3d Ri = R.inverse();
-  if (!Ri.allFinite()) return out;
+  if (opt.verify.period_ambiguity_cells > 9) return out;
+  const std::vector<Eigen::Matrix3d> moved = movedByPeriods(e, cand.H);
+  if (moved.empty()) return out;
   const std::vector<Eigen::Vector2d> region = verificationRegion(e, cand);
   const VerifyResult v0 = verifyInstance(e.pyramid, region, scene.image, camera, cand.H, opt.verify);
   if (!v0.ok) return out;
-  std::array<Eigen::Vector2d, 4> q;
-  for (int i = 0; i < 4; ++i) q[i] = applyHomography(cand.H, e.corners_und_px[i]);
   DenseRefineOptions wide = opt.dense;
-  wide.max_corner_shift_px = 0.3 * 0.5 * ((q[2] - q[0]).norm() + (q[3] - q[1]).norm());
+  wide.max_corner_shift_px = 0.3 * patternDiagonal(e, cand.H);
   if (!std::isfinite(wide.max_corner_shift_px)) return out;
   VerifyResult best;
-  for (const Eigen::Vector2d& d : e.periods) {
-    Eigen::Matrix3d T = Eigen::Matrix3d::Identity();
-    T(0, 2) = d.x();
-    T(1, 2) = d.y();
-    const Eigen::Matrix3d Hp = cand.H * Ri * T * R;
+  for (const Eigen::Matrix3d& Hp : moved) {
     VerifyResult v = verifyInstance(e.pyramid, region, scene.image, camera, Hp, opt.verify);
     const DenseRefineResult dr = refineDense(e, Hp, scene.image, camera, wide);
     bool refined = false;
