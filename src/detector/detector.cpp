@@ -331,8 +331,120 @@ std::optional<MatchCandidate> alignAcrossPeriods(const RegisteredObject& e, cons
   return **best;
 }
 
+// Photometric peaks around an instance (VerifyOptions::peak_search_*): the reference warped by
+// H into the scene, on a grid of at most 48 px on the pattern's diagonal, compared by masked
+// zero-mean NCC (cv::matchTemplate) with the scene at every translation up to peak_search_reach
+// x the diagonal. Returns H moved by the translations of the (at most peak_search_count) best
+// local maxima that correlate better than H itself (its best within a grid px) by more than
+// peak_search_margin and are more than 3 scene px from it. A few features on a small target can
+// fit a homography several pixels off whose own neighbourhood holds a better photometric
+// alignment that ECC, started from H, does not reach. The scene image is the camera's raw one:
+// the pattern is placed there by the distortion's displacement at its centre (locally a
+// translation), and the translations found are applied to H in undistorted px.
+std::vector<Eigen::Matrix3d> photometricPeaks(const RegisteredObject& e, const Eigen::Matrix3d& H,
+                                              const std::vector<Eigen::Vector2d>& polygon, const cv::Mat& scene,
+                                              const Intrinsics& camera, const VerifyOptions& opt) {
+  std::vector<Eigen::Matrix3d> out;
+  if (e.pyramid.empty() || scene.empty() || polygon.size() < 3) return out;
+  std::vector<Eigen::Vector2d> proj;
+  Eigen::Vector2d lo(1e300, 1e300), hi(-1e300, -1e300);
+  double w0 = 0;
+  for (const auto& p : polygon) {
+    const Eigen::Vector3d q = H * p.homogeneous();
+    if (proj.empty()) w0 = q.z();
+    if (!(q.z() * w0 > 0)) return out;  // the whole polygon in front of the vanishing line
+    proj.push_back(q.hnormalized());
+    lo = lo.cwiseMin(proj.back());
+    hi = hi.cwiseMax(proj.back());
+  }
+  const double diag = patternDiagonal(e, H);
+  if (!(diag > 8) || !(diag < 1e5) || !lo.allFinite() || !hi.allFinite()) return out;
+  const Eigen::Vector2d mid = 0.5 * (lo + hi), shift = distortPixel(camera, mid) - mid;
+  lo += shift;
+  hi += shift;
+  // Bounded before the casts to int below (NaN fails too).
+  if (!(lo.cwiseAbs().maxCoeff() < 1e5) || !(hi.cwiseAbs().maxCoeff() < 1e5)) return out;
+  for (auto& p : proj) p += shift;
+  const double k = std::min(1.0, 48.0 / diag);  // grid px per scene px
+  const double r = opt.peak_search_reach * diag;
+  const cv::Rect img(0, 0, scene.cols, scene.rows);
+  const cv::Rect crop = cv::Rect(cv::Point(static_cast<int>(std::floor(lo.x() - r)), static_cast<int>(std::floor(lo.y() - r))),
+                                 cv::Point(static_cast<int>(std::ceil(hi.x() + r)) + 1, static_cast<int>(std::ceil(hi.y() + r)) + 1)) & img;
+  const int tw = static_cast<int>(std::ceil((hi.x() - lo.x()) * k)) + 1, th = static_cast<int>(std::ceil((hi.y() - lo.y()) * k)) + 1;
+  if (crop.area() <= 0 || tw < 6 || th < 6) return out;
+  cv::Mat sc;
+  if (k < 1) cv::resize(scene(crop), sc, cv::Size(), k, k, cv::INTER_AREA);
+  else sc = scene(crop);
+  if (sc.cols < tw || sc.rows < th) return out;
+  // Reference level: about one reference px per grid px.
+  const double a_ref = std::abs(signedArea(polygon)), a_scene = std::abs(signedArea(proj)) * k * k;
+  if (!(a_ref > 0) || !(a_scene > 16)) return out;
+  const int L = std::clamp(static_cast<int>(std::floor(0.5 * std::log2(a_ref / a_scene))), 0, static_cast<int>(e.pyramid.size()) - 1);
+  const double ls = std::ldexp(1.0, L);
+  Eigen::Matrix3d A = Eigen::Matrix3d::Identity();  // level px -> ref px
+  A(0, 0) = A(1, 1) = ls;
+  Eigen::Matrix3d G = Eigen::Matrix3d::Identity();  // scene px -> template px
+  G(0, 0) = G(1, 1) = k;
+  G(0, 2) = -k * lo.x();
+  G(1, 2) = -k * lo.y();
+  Eigen::Matrix3d D = Eigen::Matrix3d::Identity();  // undistorted px -> raw px, near the pattern
+  D(0, 2) = shift.x();
+  D(1, 2) = shift.y();
+  const Eigen::Matrix3d W = G * D * H * A;
+  cv::Mat warp(3, 3, CV_64F);
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j) warp.at<double>(i, j) = W(i, j);
+  cv::Mat templ, mask = cv::Mat::zeros(th, tw, CV_8UC1);
+  cv::warpPerspective(e.pyramid[L], templ, warp, cv::Size(tw, th), cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  std::vector<cv::Point> poly;
+  for (const auto& p : proj)
+    poly.emplace_back(static_cast<int>(std::lround(k * (p.x() - lo.x()))), static_cast<int>(std::lround(k * (p.y() - lo.y()))));
+  cv::fillPoly(mask, std::vector<std::vector<cv::Point>>{poly}, cv::Scalar(255));
+  cv::erode(mask, mask, cv::Mat());
+  if (cv::countNonZero(mask) < 24) return out;
+  cv::Mat tf, sf, res;
+  templ.convertTo(tf, CV_32F);
+  sc.convertTo(sf, CV_32F);
+  cv::GaussianBlur(tf, tf, cv::Size(3, 3), 0.7);
+  cv::GaussianBlur(sf, sf, cv::Size(3, 3), 0.7);
+  try {
+    cv::matchTemplate(sf, tf, res, cv::TM_CCOEFF_NORMED, mask);
+  } catch (const cv::Exception&) {
+    return out;
+  }
+  cv::patchNaNs(res, -1);
+  for (int v = 0; v < res.rows; ++v)
+    for (int u = 0; u < res.cols; ++u)
+      if (!std::isfinite(res.at<float>(v, u)) || std::abs(res.at<float>(v, u)) > 1.0001f) res.at<float>(v, u) = -1;
+  const cv::Point2d p0(k * (lo.x() - crop.x), k * (lo.y() - crop.y));
+  const int i0 = std::clamp(static_cast<int>(std::lround(p0.x)), 0, res.cols - 1), j0 = std::clamp(static_cast<int>(std::lround(p0.y)), 0, res.rows - 1);
+  float at0 = -1;  // best within a grid pixel of H
+  for (int dv = -1; dv <= 1; ++dv)
+    for (int du = -1; du <= 1; ++du) {
+      const int u = i0 + du, v = j0 + dv;
+      if (u >= 0 && v >= 0 && u < res.cols && v < res.rows) at0 = std::max(at0, res.at<float>(v, u));
+    }
+  const double away = 3.0 * k;  // grid px
+  const int nms = std::max(2, static_cast<int>(std::lround(away)));
+  for (int n = 0; n < opt.peak_search_count; ++n) {
+    double mx;
+    cv::Point pm;
+    cv::minMaxLoc(res, nullptr, &mx, nullptr, &pm);
+    if (!(mx > at0 + opt.peak_search_margin)) break;
+    const double dx = (pm.x - p0.x) / k, dy = (pm.y - p0.y) / k;
+    cv::rectangle(res, cv::Rect(pm.x - nms, pm.y - nms, 2 * nms + 1, 2 * nms + 1), cv::Scalar(-1), cv::FILLED);
+    if (std::hypot(pm.x - p0.x, pm.y - p0.y) <= away) continue;
+    Eigen::Matrix3d T = Eigen::Matrix3d::Identity();
+    T(0, 2) = dx;
+    T(1, 2) = dy;
+    out.push_back(T * H);
+  }
+  return out;
+}
+
 // Repeat-period ambiguity (VerifyOptions::period_ambiguity_*): cand, which passed every check,
-// moved by each of the reference's repeat periods and aligned there photometrically (dense
+// moved by each of the reference's repeat periods and to its photometric peaks
+// (photometricPeaks, VerifyOptions::peak_search_*), and aligned there photometrically (dense
 // refinement with room to move: 0.3 x its diagonal). Ambiguous when one of those alignments
 // agrees with the scene clearly better than cand itself (verifyInstance: correlation higher by
 // more than the margin and at least period_ambiguity_cells more strong cells); `better` is then
@@ -346,11 +458,17 @@ PeriodTest periodTest(const RegisteredObject& e, const DetectorOptions& opt, con
                       const Features& scene, const Intrinsics& camera) {
   PeriodTest out;
   if (opt.verify.period_ambiguity_cells > 9) return out;
-  const std::vector<Eigen::Matrix3d> moved = movedByPeriods(e, cand.H);
-  if (moved.empty()) return out;
+  std::vector<Eigen::Matrix3d> moved = movedByPeriods(e, cand.H);
+  if (moved.empty() && opt.verify.peak_search_count == 0) return out;
   const std::vector<Eigen::Vector2d> region = verificationRegion(e, cand);
   const VerifyResult v0 = verifyInstance(e.pyramid, region, scene.image, camera, cand.H, opt.verify);
-  if (!v0.ok) return out;
+  // No alignment can have period_ambiguity_cells more strong cells than 9 - that many: nothing to try.
+  if (!v0.ok || v0.strong_cells + opt.verify.period_ambiguity_cells > 9) return out;
+  if (opt.verify.peak_search_count > 0) {
+    const std::vector<Eigen::Matrix3d> peaks = photometricPeaks(e, cand.H, region, scene.image, camera, opt.verify);
+    moved.insert(moved.end(), peaks.begin(), peaks.end());
+  }
+  if (moved.empty()) return out;
   DenseRefineOptions wide = opt.dense;
   wide.max_corner_shift_px = 0.3 * patternDiagonal(e, cand.H);
   if (!std::isfinite(wide.max_corner_shift_px)) return out;
@@ -711,7 +829,8 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
           d = od;
           kept = &*other;
         }
-        // The kept one is refused when a period away it would agree clearly better, unless that
+        // The kept one is refused when a period away (or at a photometric peak beside it) it
+        // would agree clearly better, unless that
         // alignment agrees strongly everywhere, its features match there and it passes every check:
         // then it replaces it.
         const PeriodTest pt = periodTest(e, opt, *kept, scene, camera);

@@ -26,6 +26,12 @@ void VerifyOptions::check() const {
                   "VerifyOptions.period_switch_correlation", "must be in [-1, 1.01] (1.01: never)");
   refgrasp::check(period_ambiguity_cells >= 1 && period_ambiguity_cells <= 10, "VerifyOptions.period_ambiguity_cells",
                   "must be in [1, 10] (10: never)");
+  refgrasp::check(peak_search_count >= 0 && peak_search_count <= 16, "VerifyOptions.peak_search_count",
+                  "must be in [0, 16] (0: off)");
+  refgrasp::check(std::isfinite(peak_search_reach) && peak_search_reach > 0 && peak_search_reach <= 2,
+                  "VerifyOptions.peak_search_reach", "must be in (0, 2]");
+  refgrasp::check(std::isfinite(peak_search_margin) && peak_search_margin >= 0 && peak_search_margin <= 2,
+                  "VerifyOptions.peak_search_margin", "must be in [0, 2]");
   refgrasp::check(min_strong_cells >= 0 && min_strong_cells <= 9, "VerifyOptions.min_strong_cells", "must be in [0, 9]");
 }
 

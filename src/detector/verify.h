@@ -67,6 +67,18 @@ struct VerifyOptions {
   /// the features match again under it (matchUnderHomography) and it passes every check: then it
   /// replaces the instance (homography and pose from the alignment). 1.01: never (refuse only).
   double period_switch_correlation = 0.95;
+  /// Photometric peak search (with realign, any 3D object with a dense-usable reference): the
+  /// instance that passed every check is compared, by masked zero-mean NCC of its warped
+  /// reference (48 px on the diagonal), with the scene at every translation up to
+  /// peak_search_reach x its diagonal; the best peak_search_count local maxima more than 3 px
+  /// away that correlate better than the instance's own place by more than peak_search_margin
+  /// join the repeat periods' moves in the ambiguity test above (aligned by ECC there, refused or
+  /// replaced by the same rules). A few features on a small target fit a homography several
+  /// pixels off that passes every check while a better alignment lies beside it, out of ECC's
+  /// reach from there (development seed 19 photos/47: fruits 11 px off, refused). 0: off.
+  int peak_search_count = 2;
+  double peak_search_reach = 0.7;
+  double peak_search_margin = 0.05;
   /// Throws std::invalid_argument "VerifyOptions.<field>: <problem>".
   void check() const;
 };
