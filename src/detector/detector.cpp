@@ -198,10 +198,13 @@ PoseResult poseFromDenseH(const RegisteredObject& e, const DetectorOptions& opt,
 }
 
 // dense: the dense refinement of match.H with opt.dense when the caller already ran it.
+// *from_features (when given): true when the pose was fitted to the matched features (refined
+// method without a usable dense alignment), false for the paper pose or the dense grid.
 PoseResult estimatePose(const RegisteredObject& e, const DetectorOptions& opt,
                         const MatchCandidate& match, const Features& scene,
                         const Intrinsics& camera, PoseMethod method,
-                        const DenseRefineResult* dense = nullptr) {
+                        const DenseRefineResult* dense = nullptr, bool* from_features = nullptr) {
+  if (from_features) *from_features = false;
   if (!e.model.target) return {};
   const PlanarTarget& target = *e.model.target;
   if (method == PoseMethod::kPaper)
@@ -213,6 +216,7 @@ PoseResult estimatePose(const RegisteredObject& e, const DetectorOptions& opt,
       if (p.ok) return p;
     }
   }
+  if (from_features) *from_features = true;
   std::vector<Eigen::Vector3d> X;
   std::vector<Eigen::Vector2d> y;
   std::vector<double> sigma;
@@ -784,7 +788,8 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
       d.score = cand.score;
       d.log10_nfa = cand.log10_nfa;
       if (e.model.target) {
-        const PoseResult p = estimatePose(e, opt, cand, scene, camera, opt.pose, dense);
+        bool from_features = false;
+        const PoseResult p = estimatePose(e, opt, cand, scene, camera, opt.pose, dense, &from_features);
         if (!p.ok) return Check::kPoseFailed;
         d.cMo = p.cMo;
         d.pose_rms_px = p.rms_px;
@@ -798,6 +803,10 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
         diag = 0.5 * ((hc[2] - hc[0]).norm() + (hc[3] - hc[1]).norm());
         for (int i = 0; i < 4; ++i) gap = std::max(gap, (hc[i] - d.corners[i]).norm());
         if (!(gap <= std::max(kMaxPoseGapPx, kMaxPoseGapFraction * diag))) return Check::kPoseDisagrees;
+        // A pose fitted to the features that reprojects them poorly: the consensus does not
+        // come from one rigid plane (on a facade, matches spanning two windows).
+        if (opt.verify.enabled && from_features && !(p.rms_px <= opt.verify.max_feature_pose_rms_px))
+          return Check::kNotVerified;
       } else {
         for (int i = 0; i < 4; ++i)
           d.corners[i] = distortPixel(camera, applyHomography(cand.H, e.corners_und_px[i]));

@@ -26,6 +26,8 @@ void VerifyOptions::check() const {
                   "VerifyOptions.period_switch_correlation", "must be in [-1, 1.01] (1.01: never)");
   refgrasp::check(period_ambiguity_cells >= 1 && period_ambiguity_cells <= 10, "VerifyOptions.period_ambiguity_cells",
                   "must be in [1, 10] (10: never)");
+  refgrasp::check(std::isfinite(max_feature_pose_rms_px) && max_feature_pose_rms_px > 0 && max_feature_pose_rms_px <= 1000,
+                  "VerifyOptions.max_feature_pose_rms_px", "must be in (0, 1000] (1000: never)");
   refgrasp::check(peak_search_count >= 0 && peak_search_count <= 16, "VerifyOptions.peak_search_count",
                   "must be in [0, 16] (0: off)");
   refgrasp::check(std::isfinite(peak_search_reach) && peak_search_reach > 0 && peak_search_reach <= 2,

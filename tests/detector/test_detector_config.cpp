@@ -103,6 +103,7 @@ TEST(DetectorConfig, BadFilesGiveOneLineErrorsNamingTheField) {
       {"fraction2.yaml", "verify: {period_ambiguity_cells: 2.5}\n", "verify.period_ambiguity_cells: expected an integer"},
       {"nan2.yaml", "verify: {period_ambiguity_margin: .nan}\n", "verify.period_ambiguity_margin: must be finite"},
       {"range3e.yaml", "verify: {period_switch_correlation: 2}\n", "verify.period_switch_correlation: must be in [-1, 1.01] (1.01: never)"},
+      {"range3h.yaml", "verify: {max_feature_pose_rms_px: 0}\n", "verify.max_feature_pose_rms_px: must be in (0, 1000] (1000: never)"},
       {"range3f.yaml", "verify: {peak_search_count: 17}\n", "verify.peak_search_count: must be in [0, 16] (0: off)"},
       {"range3g.yaml", "verify: {peak_search_reach: 0}\n", "verify.peak_search_reach: must be in (0, 2]"},
       {"nan3.yaml", "verify: {peak_search_margin: .nan}\n", "verify.peak_search_margin: must be finite"},
