@@ -29,6 +29,7 @@ void usage() {
       "(cv::setNumThreads(1)); times are thread CPU time (--wall: wall clock).\n"
       "Usage: bench_realistic [--frames N per set (160)] [--seed S (1001 = the report split;\n"
       "       develop on 1)] [--set photos|procedural|far_oblique] [--clutter N frames (100)]\n"
+      "       [--2d (objects without their reference pose: corners only)]\n"
       "       [--pose paper|refined] [--min-inliers N] [--max-log10-nfa X] [--count-rule (no\n"
       "       a-contrario test: min_inliers alone)] [--min-correlation C] [--no-verify] [--no-realign]\n"
       "       [--detector-config FILE (options YAML; the flags after it override it)]\n"
@@ -76,6 +77,8 @@ int main(int argc, char** argv) {
       opt.detector.match.max_log10_nfa = HUGE_VAL;
     } else if (a == "--min-correlation" && i + 1 < argc) {
       opt.detector.verify.min_correlation = bench::numberArg("bench_realistic", "--min-correlation", argv[++i], -1);
+    } else if (a == "--2d") {
+      opt.two_d = true;
     } else if (a == "--no-verify") {
       opt.detector.verify.enabled = false;
     } else if (a == "--no-realign") {

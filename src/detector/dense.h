@@ -16,7 +16,7 @@
 namespace refgrasp::detector {
 
 struct DenseRefineOptions {
-  bool enabled = true;               ///< refine H photometrically before the refined pose
+  bool enabled = true;               ///< refine H photometrically (before the refined pose; 2D-only objects: their H)
   int max_iterations = 20;           ///< ECC iterations
   double epsilon = 1e-4;             ///< ECC stop: change of the warp parameters
   int max_template_px = 16384;       ///< coarser pyramid level until the template fits (speed)

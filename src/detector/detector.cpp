@@ -19,7 +19,7 @@ struct RegisteredObject {
   std::array<Eigen::Vector2d, 4> corners_und_px;  ///< pattern corners, undistorted ref px
   std::vector<Eigen::Vector2d> polygon_und_px;    ///< pattern region, undistorted ref px
   std::vector<cv::Mat> pyramid;  ///< reference pyramid (verification; dense refinement)
-  bool dense_usable = false;     ///< dense refinement possible (3D, undistorted reference)
+  bool dense_usable = false;     ///< dense refinement possible (undistorted reference, exact region)
   bool region_is_rect = true;    ///< the region is its bounding box (no mask needed)
   std::vector<Eigen::Vector2d> periods;  ///< repeatPeriods(index): a repeated motif's other alignments
 };
@@ -672,7 +672,7 @@ int Detector::addObject(const ObjectModel& object) {
   e.pyramid = buildReferencePyramid(object.reference);
   // Dense refinement needs an undistorted reference and a region that is the pattern (one that
   // is not its bounding box is a mask on the template).
-  e.dense_usable = object.target && (!object.camera || !object.camera->hasDistortion()) && object.pattern_region_exact;
+  e.dense_usable = (!object.camera || !object.camera->hasDistortion()) && object.pattern_region_exact;
   double minx = 1e300, miny = 1e300, maxx = -1e300, maxy = -1e300;
   for (const Eigen::Vector2d& p : e.polygon_und_px) {
     minx = std::min(minx, p.x()), maxx = std::max(maxx, p.x());
@@ -808,8 +808,14 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
         if (opt.verify.enabled && from_features && !(p.rms_px <= opt.verify.max_feature_pose_rms_px))
           return Check::kNotVerified;
       } else {
+        // 2D-only: the dense alignment's H when it converged (every pixel of the pattern, not a
+        // few keypoints), the features' otherwise.
+        if (opt.dense.enabled && e.dense_usable && !scene.image.empty()) {
+          const DenseRefineResult dr = dense ? *dense : refineDense(e, cand.H, scene.image, camera, opt.dense);
+          if (dr.ok) d.H = dr.H;
+        }
         for (int i = 0; i < 4; ++i)
-          d.corners[i] = distortPixel(camera, applyHomography(cand.H, e.corners_und_px[i]));
+          d.corners[i] = distortPixel(camera, applyHomography(d.H, e.corners_und_px[i]));
       }
       d.sanity = checkDetection(d.corners, d.cMo, camera.width, camera.height, opt.sanity);
       if (d.sanity != SanityStatus::kOk) return Check::kSanity;
@@ -822,7 +828,7 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
     };
     auto consider = [&](const MatchCandidate& matched) {
       DenseRefineResult dense;
-      const bool try_realign = x && e.model.target && e.dense_usable && opt.verify.enabled && opt.verify.realign &&
+      const bool try_realign = x && e.dense_usable && opt.verify.enabled && opt.verify.realign &&
                                !scene.image.empty();
       const MatchCandidate cand = try_realign ? realign(e, opt, matched, scene, x->grid, camera, &dense) : matched;
       Detection d;

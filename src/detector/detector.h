@@ -85,7 +85,9 @@ struct Detection {
   int object = -1;    ///< id returned by addObject()
   int instance = 0;   ///< 0 = best
   bool found = false;
-  Eigen::Matrix3d H = Eigen::Matrix3d::Identity();  ///< undistorted reference px -> scene px
+  /// undistorted reference px -> scene px (undistorted); 2D-only objects: the dense alignment's
+  /// when it converged (DenseRefineOptions), else the matched features'
+  Eigen::Matrix3d H = Eigen::Matrix3d::Identity();
   std::array<Eigen::Vector2d, 4> corners{Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero(),
                                          Eigen::Vector2d::Zero(), Eigen::Vector2d::Zero()};
   ///< pattern corners TL, TR, BR, BL, image px

@@ -105,6 +105,9 @@ struct EvalOptions {
   bool time_sift = false;   ///< also time refgrasp's extraction alone
   bool cpu_time = true;     ///< thread CPU time (call cv::setNumThreads(1) first) instead of wall
   int min_distance_bin = 0; ///< frames of nearer distance bins are skipped (not rendered)
+  /// Both methods get each object without its reference pose (2D-only: H and corners, no cMo),
+  /// the use of a reference photo nobody measured; scored on the corners alone.
+  bool two_d = false;
 };
 
 /// Runs both methods on frames [first, last) of the set, each with only the frame's object
