@@ -30,6 +30,8 @@ void DenseRefineOptions::check() const {
   refgrasp::check(std::isfinite(normalized_min_correlation) && normalized_min_correlation >= -1 &&
                       normalized_min_correlation < 1,
                   w + ".normalized_min_correlation", "must be in [-1, 1)");
+  refgrasp::check(std::isfinite(max_2d_coarsening) && max_2d_coarsening >= 1, w + ".max_2d_coarsening",
+                  "must be finite and >= 1");
   refgrasp::check(pose_grid >= 2, w + ".pose_grid", "must be >= 2");
   refgrasp::check(robust_block_px >= 2, w + ".robust_block_px", "must be >= 2");
   refgrasp::check(std::isfinite(robust_min_residual) && robust_min_residual > 0, w + ".robust_min_residual",

@@ -43,6 +43,13 @@ struct DenseRefineOptions {
   /// 0.5 a pattern 54 % visible was aligned 5.7 deg off in
   /// PoseReplay.TrackingFollowsTheSequenceWithinTheDetectorsTolerances.
   double normalized_min_correlation = 0.7;
+  /// 2D-only objects: the dense H gives the corners only when the template it was aligned at (the
+  /// pyramid level max_template_px allows) is at most this many times coarser, linearly, than
+  /// the pattern in the scene (2: one octave); a large target's many features fit better than
+  /// the capped template. Development splits, 2D, median worst-corner error with the dense H
+  /// always / this rule at 1.5 / at 2: 0.46 / 0.29 / 0.31 px at 200-300 px, 0.67 / 0.26 / 0.26
+  /// above, 0.28 / 0.32 / 0.29 at 120-160 px, 0.34 / 0.35 / 0.33 overall.
+  double max_2d_coarsening = 2.0;
   int pose_grid = 8;                 ///< pose from a pose_grid x pose_grid grid mapped by the H
   /// Robust to occluders: after ECC converges, template blocks of robust_block_px whose residual
   /// (normalised intensities) exceeds max(robust_min_residual, 3 x the median block's), and

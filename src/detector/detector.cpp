@@ -809,10 +809,16 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
           return Check::kNotVerified;
       } else {
         // 2D-only: the dense alignment's H when it converged (every pixel of the pattern, not a
-        // few keypoints), the features' otherwise.
+        // few keypoints) on a template not much coarser than the scene, the features' otherwise.
         if (opt.dense.enabled && e.dense_usable && !scene.image.empty()) {
           const DenseRefineResult dr = dense ? *dense : refineDense(e, cand.H, scene.image, camera, opt.dense);
-          if (dr.ok) d.H = dr.H;
+          if (dr.ok && dr.level >= 0) {
+            std::array<Eigen::Vector2d, 4> q;
+            for (int i = 0; i < 4; ++i) q[i] = applyHomography(dr.H, e.corners_und_px[i]);
+            const double coarsening = std::ldexp(1.0, dr.level) *
+                                      std::sqrt(std::abs(signedArea(q)) / std::abs(signedArea(e.corners_und_px)));
+            if (coarsening <= opt.dense.max_2d_coarsening) d.H = dr.H;
+          }
         }
         for (int i = 0; i < 4; ++i)
           d.corners[i] = distortPixel(camera, applyHomography(d.H, e.corners_und_px[i]));

@@ -55,6 +55,7 @@ void visitFields(O& o, Visit&& v) {
   v("dense.normalize_sigma_px", o.dense.normalize_sigma_px);
   v("dense.raw_trusted_correlation", o.dense.raw_trusted_correlation);
   v("dense.normalized_min_correlation", o.dense.normalized_min_correlation);
+  v("dense.max_2d_coarsening", o.dense.max_2d_coarsening);
   v("dense.pose_grid", o.dense.pose_grid);
   v("dense.robust", o.dense.robust);
   v("dense.robust_block_px", o.dense.robust_block_px);

@@ -291,6 +291,8 @@ TEST(DenseRefine, OptionsCheck) {
   bad([](DenseRefineOptions& o) { o.normalize_sigma_px = NAN; });
   bad([](DenseRefineOptions& o) { o.raw_trusted_correlation = 1.5; });
   bad([](DenseRefineOptions& o) { o.normalized_min_correlation = 1; });
+  bad([](DenseRefineOptions& o) { o.max_2d_coarsening = 0.5; });
+  bad([](DenseRefineOptions& o) { o.max_2d_coarsening = NAN; });
   bad([](DenseRefineOptions& o) { o.pose_grid = 1; });
   bad([](DenseRefineOptions& o) { o.robust_block_px = 1; });
   bad([](DenseRefineOptions& o) { o.robust_min_residual = 0; });
