@@ -14,6 +14,7 @@
 #include "detector/detector_internal.h"
 #include "detector/homography.h"
 #include "eval/classic.h"
+#include "eval/eval_util.h"
 #include "robot/sim/synthetic_scene.h"
 
 namespace refgrasp::eval {
@@ -22,37 +23,10 @@ namespace {
 
 constexpr double kDeg = M_PI / 180;
 
-double uni(std::mt19937_64& rng, double a, double b) {
-  return std::uniform_real_distribution<double>(a, b)(rng);
-}
-
-uint64_t mix(uint64_t a, uint64_t b) {
-  uint64_t z = a * 0x9E3779B97F4A7C15ull + b + 0x632BE59BD9B4E019ull;
-  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-  return z ^ (z >> 31);
-}
-
-template <class F>
-double timed(bool cpu, F&& f) {
-  if (cpu) {
-    timespec a{}, b{};
-    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &a);
-    f();
-    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &b);
-    return 1e3 * static_cast<double>(b.tv_sec - a.tv_sec) + 1e-6 * static_cast<double>(b.tv_nsec - a.tv_nsec);
-  }
-  const auto t0 = std::chrono::steady_clock::now();
-  f();
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
-
-double median(std::vector<double> v) {
-  if (v.empty()) return NAN;
-  std::sort(v.begin(), v.end());
-  const size_t n = v.size();
-  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
-}
+using detail::median;
+using detail::mix;
+using detail::timed;
+using detail::uni;
 
 int binOf(const std::vector<double>& edges, double x) {
   for (size_t i = 0; i + 1 < edges.size(); ++i)
