@@ -270,6 +270,23 @@ std::vector<Eigen::Matrix3d> movedByPeriods(const RegisteredObject& e, const Eig
 // reference agrees better with the scene (verifyInstance). Whichever candidate is kept, when its
 // own dense refinement is still refused for the distance, the wide refinement from it becomes
 // its alignment if it correlates at least verify.realign_trusted_correlation (H and *dense).
+// Fraction of the pattern's projection under H (undistorted scene px) inside the frame; 0 when
+// it is degenerate or crosses the vanishing line.
+double inViewFraction(const RegisteredObject& e, const Eigen::Matrix3d& H, const Intrinsics& camera) {
+  std::vector<Eigen::Vector2d> q;
+  double w0 = 0;
+  for (const auto& c : e.corners_und_px) {
+    const Eigen::Vector3d p = H * c.homogeneous();
+    if (q.empty()) w0 = p.z();
+    if (!(p.z() * w0 > 0)) return 0;
+    q.push_back(p.hnormalized());
+  }
+  const double area = std::abs(signedArea(q));
+  if (!(area > 1e-9) || !std::isfinite(area)) return 0;
+  const auto in = clipToBox(q, Eigen::Vector2d(-0.5, -0.5), Eigen::Vector2d(camera.width - 0.5, camera.height - 0.5));
+  return in.size() < 3 ? 0 : std::min(1.0, std::abs(signedArea(in)) / area);
+}
+
 MatchCandidate realign(const RegisteredObject& e, const DetectorOptions& opt, const MatchCandidate& cand,
                        const Features& scene, const GridIndex& grid, const Intrinsics& camera,
                        DenseRefineResult* dense) {
@@ -835,7 +852,7 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
     auto consider = [&](const MatchCandidate& matched) {
       DenseRefineResult dense;
       const bool try_realign = x && e.dense_usable && opt.verify.enabled && opt.verify.realign &&
-                               !scene.image.empty();
+                               !scene.image.empty() && inViewFraction(e, matched.H, camera) >= opt.verify.realign_min_in_view;
       const MatchCandidate cand = try_realign ? realign(e, opt, matched, scene, x->grid, camera, &dense) : matched;
       Detection d;
       Check c = check(cand, try_realign ? &dense : nullptr, &d);

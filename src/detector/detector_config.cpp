@@ -72,6 +72,7 @@ void visitFields(O& o, Visit&& v) {
   v("verify.min_strong_cells", o.verify.min_strong_cells);
   v("verify.realign", o.verify.realign);
   v("verify.realign_trusted_correlation", o.verify.realign_trusted_correlation);
+  v("verify.realign_min_in_view", o.verify.realign_min_in_view);
   v("verify.spare_candidate", o.verify.spare_candidate);
   v("verify.period_ambiguity_margin", o.verify.period_ambiguity_margin);
   v("verify.period_ambiguity_cells", o.verify.period_ambiguity_cells);

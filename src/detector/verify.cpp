@@ -18,6 +18,8 @@ void VerifyOptions::check() const {
   refgrasp::check(std::isfinite(realign_trusted_correlation) && realign_trusted_correlation >= 0 &&
                       realign_trusted_correlation <= 1,
                   "VerifyOptions.realign_trusted_correlation", "must be in [0, 1] (1: never)");
+  refgrasp::check(std::isfinite(realign_min_in_view) && realign_min_in_view >= 0 && realign_min_in_view <= 1,
+                  "VerifyOptions.realign_min_in_view", "must be in [0, 1] (0: always)");
   refgrasp::check(std::isfinite(period_ambiguity_margin) && period_ambiguity_margin >= 0 &&
                       period_ambiguity_margin <= 2,
                   "VerifyOptions.period_ambiguity_margin", "must be in [0, 2]");
@@ -37,21 +39,57 @@ void VerifyOptions::check() const {
   refgrasp::check(min_strong_cells >= 0 && min_strong_cells <= 9, "VerifyOptions.min_strong_cells", "must be in [0, 9]");
 }
 
-VerifyResult verifyInstance(const std::vector<cv::Mat>& pyr, const std::vector<Eigen::Vector2d>& polygon,
+VerifyResult verifyInstance(const std::vector<cv::Mat>& pyr, const std::vector<Eigen::Vector2d>& pattern,
                             const cv::Mat& scene, const Intrinsics& cam, const Eigen::Matrix3d& H,
                             const VerifyOptions& opt) {
   VerifyResult res;
-  if (pyr.empty() || scene.empty() || scene.type() != CV_8UC1 || polygon.size() < 3 || !H.allFinite()) return res;
+  if (pyr.empty() || scene.empty() || scene.type() != CV_8UC1 || pattern.size() < 3 || !H.allFinite()) return res;
   // Pattern in the scene (undistorted px): in front of the vanishing line, its area.
+  auto project = [&](const std::vector<Eigen::Vector2d>& poly, std::vector<Eigen::Vector2d>* proj) {
+    proj->clear();
+    double w0 = 0;
+    for (const auto& p : poly) {
+      const Eigen::Vector3d q = H * p.homogeneous();
+      if (proj->empty()) w0 = q.z();
+      if (!(q.z() * w0 > 0)) return false;
+      proj->push_back(q.hnormalized());
+    }
+    return true;
+  };
   std::vector<Eigen::Vector2d> proj;
-  double w0 = 0;
-  for (const auto& p : polygon) {
-    const Eigen::Vector3d q = H * p.homogeneous();
-    if (proj.empty()) w0 = q.z();
-    if (!(q.z() * w0 > 0)) return res;
-    proj.push_back(q.hnormalized());
+  if (!project(pattern, &proj)) return res;
+  const double a_pattern = std::abs(signedArea(proj));
+  if (!(a_pattern > 4) || !std::isfinite(a_pattern)) return res;
+  // The part of the pattern in view (the scene's frame mapped back into the reference): a
+  // pattern seen larger than the frame is compared where it is seen. It must cover a quarter of
+  // the pattern, or of the frame when the pattern is larger.
+  std::vector<Eigen::Vector2d> polygon = pattern;
+  {
+    std::vector<Eigen::Vector2d> frame = {{-0.5, -0.5}, {scene.cols - 0.5, -0.5}, {scene.cols - 0.5, scene.rows - 0.5},
+                                          {-0.5, scene.rows - 0.5}};
+    if (cam.hasDistortion())
+      for (auto& f : frame) f = cam.undistortPixel(f);
+    const Eigen::Matrix3d Hi = H.inverse();
+    std::vector<Eigen::Vector2d> frame_ref;
+    bool in_front = Hi.allFinite();
+    const double w_pattern = (H * pattern[0].homogeneous()).z();
+    for (const auto& f : frame) {
+      const Eigen::Vector3d r = Hi * f.homogeneous();
+      // The frame's corner must see the pattern's plane (H r = f exactly, so H maps r / r_z with w = 1 / r_z).
+      in_front = in_front && r.z() * w_pattern > 0 && std::abs(r.z()) > 1e-12;
+      frame_ref.push_back(r.hnormalized());
+    }
+    if (in_front) {
+      polygon = clipToConvex(pattern, frame_ref);
+      std::vector<Eigen::Vector2d> seen;
+      if (polygon.size() < 3 || !project(polygon, &seen)) return res;
+      const double a_seen = std::abs(signedArea(seen));
+      if (!(a_seen >= 0.25 * std::min(a_pattern, static_cast<double>(scene.total())))) return res;
+    }
   }
-  const double a_ref = std::abs(signedArea(polygon)), a_scene = std::abs(signedArea(proj));
+  std::vector<Eigen::Vector2d> seen;
+  if (!project(polygon, &seen)) return res;
+  const double a_ref = std::abs(signedArea(polygon)), a_scene = std::abs(signedArea(seen));
   if (!(a_ref > 0) || !(a_scene > 4) || !std::isfinite(a_scene)) return res;
   Eigen::Vector2d lo = polygon[0], hi = polygon[0];
   for (const auto& p : polygon) {

@@ -46,6 +46,13 @@ struct VerifyOptions {
   /// alignment at >= 0.9 had the better corners 3 times in 4 (typically from 2-8 px to under 1),
   /// and fixed a magazine reported 11 px off. 1: never (the features' alignment is kept).
   double realign_trusted_correlation = 0.9;
+  /// The re-alignment (and the repeat-period and peak tests that come with it) only for an
+  /// instance with at least this fraction of its projected pattern inside the frame: its trigger
+  /// and its acceptance are measured at the pattern's corners, which a close-up (a pattern
+  /// larger than the frame) puts far outside it, where a photometric alignment of the part in
+  /// view extrapolates poorly. On photo pairs zoomed 1.3-2.9x (bench_pairs) the re-alignment
+  /// moved features' corners within 1.5 px to 4-13 px off. 0: always.
+  double realign_min_in_view = 0.7;
   /// When every candidate the matcher returned (match.max_instances of them) fails the checks,
   /// ask it for one more and check the new one too: the search stops at its first candidates,
   /// and on a facade the first can be a consensus one window off that the pose check refuses
@@ -91,15 +98,19 @@ struct VerifyOptions {
 struct VerifyResult {
   bool ok = false;           ///< correlation >= min_correlation (false also when not computable)
   double correlation = 0;    ///< zero-mean NCC over the pattern pixels that land in the scene
-  double visible_fraction = 0;  ///< of the pattern's compared pixels, those inside the scene image
+  double visible_fraction = 0;  ///< of the compared pixels of the part in view, those inside the scene image
   int strong_cells = 0;      ///< 3 x 3 cells correlating >= strong_correlation on their own
 };
 
 /// Compares the reference (pyramid: level 0 = the reference image, each next one pyrDown) inside
 /// `polygon` (reference px) with the scene (CV_8UC1) under H. With a distorting scene camera H
-/// ends in undistorted scene px and the scene is sampled through the distortion. Not computable (ok = false,
-/// correlation 0): an empty pyramid or scene, a non-finite H, the pattern crossing the vanishing
-/// line, less than a quarter of it inside the scene, or a flat (textureless) comparison.
+/// ends in undistorted scene px and the scene is sampled through the distortion. Only the part of
+/// the polygon in view is compared (the scene's frame mapped into the reference by H^-1, when
+/// the frame lies wholly on the plane's side of its vanishing line): a pattern seen larger than
+/// the frame (a close-up) is verified where it is seen, its 3 x 3 cells cut from that part. Not
+/// computable (ok = false, correlation 0): an empty pyramid or scene, a non-finite H, the pattern
+/// crossing the vanishing line, less in view than a quarter of the pattern (of the frame, for a
+/// pattern larger than the frame), or a flat (textureless) comparison.
 VerifyResult verifyInstance(const std::vector<cv::Mat>& ref_pyramid, const std::vector<Eigen::Vector2d>& polygon,
                             const cv::Mat& scene, const Intrinsics& scene_camera, const Eigen::Matrix3d& H,
                             const VerifyOptions& opt);

@@ -98,6 +98,7 @@ TEST(DetectorConfig, BadFilesGiveOneLineErrorsNamingTheField) {
       {"range3.yaml", "dense: {gauss_filter_size: 4}\n", "dense.gauss_filter_size: must be odd and >= 1"},
       {"range3b.yaml", "dense: {normalize_sigma_px: 100}\n", "dense.normalize_sigma_px: must be in [0, 64] (0: off)"},
       {"range3c.yaml", "verify: {realign_trusted_correlation: 1.2}\n", "verify.realign_trusted_correlation: must be in [0, 1] (1: never)"},
+      {"range3e.yaml", "verify: {realign_min_in_view: -0.1}\n", "verify.realign_min_in_view: must be in [0, 1] (0: always)"},
       {"bool2.yaml", "verify: {spare_candidate: 2}\n", "verify.spare_candidate: expected true or false"},
       {"range3d.yaml", "verify: {period_ambiguity_cells: 11}\n", "verify.period_ambiguity_cells: must be in [1, 10] (10: never)"},
       {"fraction2.yaml", "verify: {period_ambiguity_cells: 2.5}\n", "verify.period_ambiguity_cells: expected an integer"},

@@ -212,8 +212,12 @@ TEST(Sanity, EachRuleRejects) {
   auto tiny = square;
   for (auto& c : tiny) c = Eigen::Vector2d(100, 100) + 0.1 * (c - Eigen::Vector2d(100, 100));
   EXPECT_EQ(checkDetection(tiny, at1m, 640, 480, opt), SanityStatus::kAreaTooSmall);
-  auto huge = square;
-  for (auto& c : huge) c = Eigen::Vector2d(150, 150) + 20.0 * (c - Eigen::Vector2d(150, 150));
+  // A close-up may show the pattern up to 4x the frame (max_area_fraction 16): 2000 px passes,
+  // 3000 px does not.
+  auto closeup = square, huge = square;
+  for (auto& c : closeup) c = Eigen::Vector2d(150, 150) + 20.0 * (c - Eigen::Vector2d(150, 150));
+  for (auto& c : huge) c = Eigen::Vector2d(150, 150) + 30.0 * (c - Eigen::Vector2d(150, 150));
+  EXPECT_EQ(checkDetection(closeup, at1m, 640, 480, opt), SanityStatus::kOk);
   EXPECT_EQ(checkDetection(huge, at1m, 640, 480, opt), SanityStatus::kAreaTooLarge);
   auto nan = square;
   nan[0].x() = std::nan("");
