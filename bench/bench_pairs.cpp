@@ -16,8 +16,6 @@
 #include "detector/object.h"
 #include "eval/classic.h"
 #include "eval/pairs_eval.h"
-#include "robot/sim/realistic_scene.h"
-#include "robot/sim/synthetic_scene.h"
 
 using namespace refgrasp;
 
@@ -90,12 +88,13 @@ int main(int argc, char** argv) {
   cv::setNumThreads(1);
   opt.sift.threads = 1;
   if (!dump.empty()) {
-    std::vector<std::string> textures = testing::photoTextures();
-    for (const auto& t : testing::targetTextures()) textures.push_back(t);
+    const std::vector<std::string> textures = eval::pairTextures();
     for (int f = 0; f < eval::kPairFamilies; ++f)
       for (int l = 0; l < eval::kPairLevels; ++l)
-        for (const auto& t : textures) {
-          const eval::ViewPair p = eval::makeViewPair(t, static_cast<eval::PairFamily>(f), l, first);
+        for (size_t k = 0; k < textures.size(); ++k) {
+          const std::string& t = textures[k];
+          const eval::ViewPair p =
+              eval::makeViewPair(t, static_cast<eval::PairFamily>(f), l, eval::pairSeed(first, static_cast<int>(k)));
           std::string name = t.substr(t.find('/') + 1);
           name = name.substr(0, name.find('.'));
           const std::string stem = dump + "/" + eval::pairFamilyName(p.family) + "_" + std::to_string(l) + "_" + name;
@@ -107,13 +106,14 @@ int main(int argc, char** argv) {
     return 0;
   }
   if (diagnose) {
-    std::vector<std::string> textures = testing::photoTextures();
-    for (const auto& t : testing::targetTextures()) textures.push_back(t);
+    const std::vector<std::string> textures = eval::pairTextures();
     for (int f = 0; f < eval::kPairFamilies; ++f) {
       if (family >= 0 && f != family) continue;
       for (int l = 0; l < eval::kPairLevels; ++l)
-        for (const auto& t : textures) {
-          const eval::ViewPair p = eval::makeViewPair(t, static_cast<eval::PairFamily>(f), l, first);
+        for (size_t k = 0; k < textures.size(); ++k) {
+          const std::string& t = textures[k];
+          const eval::ViewPair p =
+              eval::makeViewPair(t, static_cast<eval::PairFamily>(f), l, eval::pairSeed(first, static_cast<int>(k)));
           const auto model = detector::makeObjectModel(t, p.reference, std::nullopt, std::nullopt);
           detector::Detector det(opt);
           det.addObject(model);

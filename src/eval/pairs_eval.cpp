@@ -27,13 +27,17 @@ using detail::median;
 using detail::mix;
 using detail::uni;
 
+}  // namespace
+
 std::vector<std::string> pairTextures() {
   std::vector<std::string> t = testing::photoTextures();
   for (const auto& p : testing::targetTextures()) t.push_back(p);
   return t;
 }
 
-}  // namespace
+uint64_t pairSeed(uint64_t split_seed, int texture_index) {
+  return mix(split_seed, static_cast<uint64_t>(texture_index));
+}
 
 const char* pairFamilyName(PairFamily f) {
   switch (f) {
@@ -157,7 +161,7 @@ std::vector<PairOutcome> evaluatePairs(const detector::DetectorOptions& opt, int
       if (only_family >= 0 && f != only_family) continue;
       for (int l = 0; l < kPairLevels; ++l)
         for (size_t t = 0; t < textures.size(); ++t) {
-          const uint64_t seed = mix(first_seed + static_cast<uint64_t>(k), t);
+          const uint64_t seed = pairSeed(first_seed + static_cast<uint64_t>(k), static_cast<int>(t));
           const ViewPair p = makeViewPair(textures[t], static_cast<PairFamily>(f), l, seed);
           const detector::ObjectModel model = detector::makeObjectModel(textures[t], p.reference, std::nullopt, std::nullopt);
           PairOutcome o;

@@ -44,6 +44,12 @@ struct ViewPair {
   Eigen::Matrix3d H_true;   ///< reference px -> scene px
 };
 
+/// The pictures of the pairs: media/photos then media/targets (loadMedia paths).
+std::vector<std::string> pairTextures();
+/// The seed of the pairs of picture `texture_index` in split `split_seed` (evaluatePairs,
+/// bench_pairs --dump and --diagnose draw the same pairs).
+uint64_t pairSeed(uint64_t split_seed, int texture_index);
+
 /// The pair of (texture, family, level) drawn with `seed` (pose details, looks, background).
 ViewPair makeViewPair(const std::string& texture, PairFamily family, int level, uint64_t seed);
 
