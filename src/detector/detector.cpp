@@ -269,7 +269,8 @@ std::vector<Eigen::Matrix3d> movedByPeriods(const RegisteredObject& e, const Eig
 // (at least as many inliers, or a consensus at least as significant: log10 NFA) and its warped
 // reference agrees better with the scene (verifyInstance). Whichever candidate is kept, when its
 // own dense refinement is still refused for the distance, the wide refinement from it becomes
-// its alignment if it correlates at least verify.realign_trusted_correlation (H and *dense).
+// its alignment if it correlates at least verify.realign_trusted_correlation (H and *dense), or
+// if its warped reference verifies clearly better (verify.realign_verified_*).
 // Fraction of the pattern's projection under H (undistorted scene px) inside the frame; 0 when
 // it is degenerate or crosses the vanishing line.
 double inViewFraction(const RegisteredObject& e, const Eigen::Matrix3d& H, const Intrinsics& camera) {
@@ -300,10 +301,22 @@ MatchCandidate realign(const RegisteredObject& e, const DetectorOptions& opt, co
     if (!std::isfinite(wide.max_corner_shift_px)) return DenseRefineResult{};
     return refineDense(e, H, scene.image, camera, wide);
   };
-  // c, aligned by its wide refinement w when w is trusted.
+  // c, aligned by its wide refinement w when w is trusted: by its ECC correlation, or because its
+  // warped reference verifies clearly better than c's.
   auto adopt = [&](const MatchCandidate& c, const DenseRefineResult& w) {
-    const double trusted = opt.verify.realign_trusted_correlation;
-    if (!(w.ok && trusted < 1 && w.correlation >= trusted)) return c;
+    if (!w.ok) return c;
+    const VerifyOptions& vo = opt.verify;
+    bool take = vo.realign_trusted_correlation < 1 && w.correlation >= vo.realign_trusted_correlation;
+    // Not on a reference with repeat periods: there a consensus one period off verifies as well.
+    if (!take && vo.realign_verified_correlation <= 1 && movedByPeriods(e, c.H).empty()) {
+      const std::vector<Eigen::Vector2d> region = verificationRegion(e, c);
+      const VerifyResult vw = verifyInstance(e.pyramid, region, scene.image, camera, w.H, vo);
+      if (vw.ok && vw.correlation >= vo.realign_verified_correlation && vw.strong_cells >= vo.realign_verified_cells) {
+        const VerifyResult vc = verifyInstance(e.pyramid, region, scene.image, camera, c.H, vo);
+        take = vw.correlation >= vc.correlation + vo.realign_verified_gain;
+      }
+    }
+    if (!take) return c;
     MatchCandidate out = c;
     out.H = w.H;
     *dense = w;

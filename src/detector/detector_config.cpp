@@ -72,6 +72,9 @@ void visitFields(O& o, Visit&& v) {
   v("verify.min_strong_cells", o.verify.min_strong_cells);
   v("verify.realign", o.verify.realign);
   v("verify.realign_trusted_correlation", o.verify.realign_trusted_correlation);
+  v("verify.realign_verified_correlation", o.verify.realign_verified_correlation);
+  v("verify.realign_verified_gain", o.verify.realign_verified_gain);
+  v("verify.realign_verified_cells", o.verify.realign_verified_cells);
   v("verify.realign_min_in_view", o.verify.realign_min_in_view);
   v("verify.spare_candidate", o.verify.spare_candidate);
   v("verify.period_ambiguity_margin", o.verify.period_ambiguity_margin);

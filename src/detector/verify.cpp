@@ -18,6 +18,13 @@ void VerifyOptions::check() const {
   refgrasp::check(std::isfinite(realign_trusted_correlation) && realign_trusted_correlation >= 0 &&
                       realign_trusted_correlation <= 1,
                   "VerifyOptions.realign_trusted_correlation", "must be in [0, 1] (1: never)");
+  refgrasp::check(std::isfinite(realign_verified_correlation) && realign_verified_correlation >= -1 &&
+                      realign_verified_correlation <= 1.01,
+                  "VerifyOptions.realign_verified_correlation", "must be in [-1, 1.01] (1.01: never)");
+  refgrasp::check(std::isfinite(realign_verified_gain) && realign_verified_gain >= 0 && realign_verified_gain <= 2,
+                  "VerifyOptions.realign_verified_gain", "must be in [0, 2]");
+  refgrasp::check(realign_verified_cells >= 0 && realign_verified_cells <= 9, "VerifyOptions.realign_verified_cells",
+                  "must be in [0, 9]");
   refgrasp::check(std::isfinite(realign_min_in_view) && realign_min_in_view >= 0 && realign_min_in_view <= 1,
                   "VerifyOptions.realign_min_in_view", "must be in [0, 1] (0: always)");
   refgrasp::check(std::isfinite(period_ambiguity_margin) && period_ambiguity_margin >= 0 &&

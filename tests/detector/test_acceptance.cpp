@@ -160,6 +160,9 @@ TEST(Acceptance, VerificationRefusesASiblingSharingALogo) {
   checks(&VerifyOptions::strong_correlation, {nan, 1}, 0.7);
   checks(&VerifyOptions::realign_trusted_correlation, {-0.1, 1.5, nan}, 1);
   checks(&VerifyOptions::realign_min_in_view, {-0.1, 1.5, nan}, 0);
+  checks(&VerifyOptions::realign_verified_correlation, {-1.5, 1.02, nan}, 1.01);
+  checks(&VerifyOptions::realign_verified_gain, {-0.01, 2.5, nan, inf}, 0);
+  checks(&VerifyOptions::realign_verified_cells, {-1, 10}, 9);
   checks(&VerifyOptions::period_ambiguity_margin, {-0.01, 2.5, nan, inf}, 0);
   checks(&VerifyOptions::period_ambiguity_cells, {0, -1, 11}, 10);
   checks(&VerifyOptions::period_switch_correlation, {-1.5, 1.02, nan}, 1.01);
