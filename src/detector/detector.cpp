@@ -859,6 +859,9 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
         const VerifyResult v = verifyInstance(e.pyramid, verificationRegion(e, cand), scene.image, camera, cand.H, opt.verify);
         d.correlation = v.correlation;
         if (!v.ok) return Check::kNotVerified;
+        // On a repeated motif cells agree by chance under a wrong lattice map: more must agree.
+        if (!e.periods.empty() && v.strong_cells < std::min(opt.verify.periodic_min_strong_cells, v.textured_cells))
+          return Check::kNotVerified;
       }
       return Check::kOk;
     };

@@ -70,6 +70,7 @@ void visitFields(O& o, Visit&& v) {
   v("verify.compare_px", o.verify.compare_px);
   v("verify.strong_correlation", o.verify.strong_correlation);
   v("verify.min_strong_cells", o.verify.min_strong_cells);
+  v("verify.periodic_min_strong_cells", o.verify.periodic_min_strong_cells);
   v("verify.realign", o.verify.realign);
   v("verify.realign_trusted_correlation", o.verify.realign_trusted_correlation);
   v("verify.realign_verified_correlation", o.verify.realign_verified_correlation);

@@ -44,6 +44,8 @@ void VerifyOptions::check() const {
   refgrasp::check(std::isfinite(peak_search_margin) && peak_search_margin >= 0 && peak_search_margin <= 2,
                   "VerifyOptions.peak_search_margin", "must be in [0, 2]");
   refgrasp::check(min_strong_cells >= 0 && min_strong_cells <= 9, "VerifyOptions.min_strong_cells", "must be in [0, 9]");
+  refgrasp::check(periodic_min_strong_cells >= 0 && periodic_min_strong_cells <= 9,
+                  "VerifyOptions.periodic_min_strong_cells", "must be in [0, 9]");
 }
 
 VerifyResult verifyInstance(const std::vector<cv::Mat>& pyr, const std::vector<Eigen::Vector2d>& pattern,
@@ -207,6 +209,7 @@ VerifyResult verifyInstance(const std::vector<cv::Mat>& pyr, const std::vector<E
       strong += c >= opt.strong_correlation;
     }
   res.strong_cells = strong;
+  res.textured_cells = cells;
   res.ok = res.correlation >= opt.min_correlation && 2 * agreeing >= cells && strong >= std::min(opt.min_strong_cells, cells);
   return res;
 }

@@ -141,6 +141,8 @@ TEST(Acceptance, VerificationRefusesASiblingSharingALogo) {
     accepted += v_real.ok;
     refused += !v_fake.ok;
     EXPECT_TRUE(v_real.ok) << k << ": " << v_real.correlation << ", " << v_real.strong_cells << " strong cells";
+    EXPECT_EQ(v_real.textured_cells, 9) << k;  // every cell of these patterns has texture
+    EXPECT_LE(v_fake.strong_cells, v_fake.textured_cells) << k;
     EXPECT_FALSE(v_fake.ok) << k << ": " << v_fake.correlation << ", " << v_fake.strong_cells << " strong cells";
   }
   std::printf("siblings refused %d/%d, true patterns accepted %d/%d\n", refused, cases, accepted, cases);
@@ -157,6 +159,7 @@ TEST(Acceptance, VerificationRefusesASiblingSharingALogo) {
   };
   const double nan = NAN, inf = INFINITY;
   checks(&VerifyOptions::min_strong_cells, {10, -1}, 9);
+  checks(&VerifyOptions::periodic_min_strong_cells, {10, -1}, 0);
   checks(&VerifyOptions::strong_correlation, {nan, 1}, 0.7);
   checks(&VerifyOptions::realign_trusted_correlation, {-0.1, 1.5, nan}, 1);
   checks(&VerifyOptions::realign_min_in_view, {-0.1, 1.5, nan}, 0);

@@ -102,6 +102,7 @@ TEST(DetectorConfig, BadFilesGiveOneLineErrorsNamingTheField) {
       {"range3i.yaml", "verify: {realign_verified_correlation: 1.5}\n",
        "verify.realign_verified_correlation: must be in [-1, 1.01] (1.01: never)"},
       {"range3j.yaml", "verify: {realign_verified_cells: 10}\n", "verify.realign_verified_cells: must be in [0, 9]"},
+      {"range3k.yaml", "verify: {periodic_min_strong_cells: -1}\n", "verify.periodic_min_strong_cells: must be in [0, 9]"},
       {"bool2.yaml", "verify: {spare_candidate: 2}\n", "verify.spare_candidate: expected true or false"},
       {"range3d.yaml", "verify: {period_ambiguity_cells: 11}\n", "verify.period_ambiguity_cells: must be in [1, 10] (10: never)"},
       {"fraction2.yaml", "verify: {period_ambiguity_cells: 2.5}\n", "verify.period_ambiguity_cells: expected an integer"},
