@@ -55,7 +55,7 @@ void usage() {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
   int frames = 24;
   uint64_t seed = 1;
   std::string texture = "targets/poster_concert.png";
@@ -74,8 +74,7 @@ int main(int argc, char** argv) {
     } else if (a == "--texture" && i + 1 < argc) {
       texture = argv[++i];
     } else {
-      std::fprintf(stderr, "bench_detector: unknown argument '%s' (see --help)\n", a.c_str());
-      return 2;
+      bench::rejectArgument("bench_detector", a, {"--frames", "--seed", "--threads", "--texture"});
     }
   }
   const cv::Mat tex = loadMedia(texture);
@@ -155,4 +154,8 @@ int main(int argc, char** argv) {
   std::printf("| whole / SIFT (median of per-frame) | %16.3f | %28.3f |\n", bar, median(ratio_whole_cpu));
   std::printf("bar whole <= 1.25 x SIFT (wall): %s\n", bar <= 1.25 ? "MET" : "NOT MET");
   return 0;
+}
+catch (const std::exception& e) {  // a missing or unreadable input: one line, not an abort
+  std::fprintf(stderr, "bench_detector: %s\n", e.what());
+  return 1;
 }

@@ -77,7 +77,7 @@ struct Samples {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
   int runs = 1;
   for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--runs") == 0 && i + 1 < argc) {
@@ -159,4 +159,8 @@ int main(int argc, char** argv) {
               " looks, confirmations and re-detections)\n",
               1e3 * model.control_period_s, 1e3 * servo::GraspOptions().frame_period_s);
   return 0;
+}
+catch (const std::exception& e) {  // a missing or unreadable input: one line, not an abort
+  std::fprintf(stderr, "bench_grasp_step: %s\n", e.what());
+  return 1;
 }

@@ -37,7 +37,7 @@ void usage() {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
   int seeds = 1;
   uint64_t first = 1001;
   double tol = 3;
@@ -81,10 +81,12 @@ int main(int argc, char** argv) {
     } else if (a == "--dump" && i + 1 < argc) {
       dump = argv[++i];
     } else {
-      std::fprintf(stderr, "bench_pairs: unknown argument '%s' (see --help)\n", a.c_str());
-      return 2;
+      bench::rejectArgument("bench_pairs", a, {"--seeds", "--first-seed", "--tolerance", "--detector-config", "--family", "--csv", "--dump"});
     }
   }
+  std::ofstream csv_out;  // opened before the run: a path that cannot be written fails at once
+  if (!csv.empty()) bench::openOutput("bench_pairs", csv, csv_out);
+  if (!dump.empty()) bench::requireFolder("bench_pairs", "--dump", dump);
   cv::setNumThreads(1);
   opt.sift.threads = 1;
   if (!dump.empty()) {
@@ -163,17 +165,22 @@ int main(int argc, char** argv) {
                   r.c_reported ? "reported" : "missed", r.c_err, r.c_inliers);
   std::printf("Photo pairs, seeds %llu..%llu\n\n%s", static_cast<unsigned long long>(first),
               static_cast<unsigned long long>(first + seeds - 1), eval::formatPairTables(rows, tol).c_str());
-  if (!csv.empty()) {
-    std::ofstream o(csv);
+  if (csv_out.is_open()) {
+    std::ofstream& o = csv_out;
     o << "family,level,picture,seed,r_reported,r_err_px,r_inliers,r_miss,c_reported,c_err_px,c_inliers,r_ms,c_ms\n";
     for (const auto& r : rows)
       o << eval::pairFamilyName(r.family) << ',' << r.level << ',' << r.texture << ',' << r.seed << ',' << r.r_reported
         << ',' << r.r_err << ',' << r.r_inliers << ',' << r.r_miss << ',' << r.c_reported << ',' << r.c_err << ','
         << r.c_inliers << ',' << r.r_ms << ',' << r.c_ms << '\n';
+    o.flush();
     if (!o) {
       std::fprintf(stderr, "bench_pairs: %s: cannot write\n", csv.c_str());
       return 1;
     }
   }
   return 0;
+}
+catch (const std::exception& e) {  // a missing or unreadable input: one line, not an abort
+  std::fprintf(stderr, "bench_pairs: %s\n", e.what());
+  return 1;
 }

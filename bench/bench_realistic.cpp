@@ -42,7 +42,7 @@ void usage() {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
   int frames = 160, clutter = 100, min_bin = 0;
   uint64_t seed = 1001;
   std::string only, csv, dump;
@@ -62,6 +62,11 @@ int main(int argc, char** argv) {
       seed = static_cast<uint64_t>(bench::intArg("bench_realistic", "--seed", argv[++i], 0));
     } else if (a == "--set" && i + 1 < argc) {
       only = argv[++i];
+      if (only != "photos" && only != "procedural" && only != "far_oblique") {
+        std::fprintf(stderr, "bench_realistic: --set: expected photos, procedural or far_oblique, got '%s'\n",
+                     only.c_str());
+        return 2;
+      }
     } else if (a == "--pose" && i + 1 < argc) {
       const std::string p = argv[++i];
       if (p != "paper" && p != "refined") {
@@ -103,15 +108,22 @@ int main(int argc, char** argv) {
     } else if (a == "--csv" && i + 1 < argc) {
       csv = argv[++i];
     } else {
-      std::fprintf(stderr, "bench_realistic: unknown argument '%s' (see --help)\n", a.c_str());
+      bench::rejectArgument("bench_realistic", a, {"--frames", "--clutter", "--seed", "--set", "--pose", "--min-inliers", "--max-log10-nfa", "--min-correlation", "--detector-config", "--min-distance-bin", "--dump", "--csv"});
+    }
+  }
+  for (const auto& spec : eval::realisticSets(seed, frames)) {  // every set has this many distance bins
+    const int D = static_cast<int>(spec.distance_edges_m.size()) - 1;
+    if (min_bin >= D) {
+      std::fprintf(stderr, "bench_realistic: --min-distance-bin: expected an integer <= %d, got '%d'\n", D - 1, min_bin);
       return 2;
     }
   }
+  if (!dump.empty()) bench::requireFolder("bench_realistic", "--dump", dump);
   cv::setNumThreads(1);
   opt.detector.sift.threads = 1;
-  std::ofstream rows;
+  std::ofstream rows;  // opened before the run: a path that cannot be written fails at once
   if (!csv.empty()) {
-    rows.open(csv);
+    bench::openOutput("bench_realistic", csv, rows);
     rows << "set,frame,object,distance_m,tilt_deg,size_px,r_found,r_pose_ok,r_wrong,r_corner_px,r_rot_deg,r_rel_t,"
             "r_inliers,r_miss,c_found,c_pose_ok,c_wrong,c_corner_px,c_rot_deg,c_rel_t,c_inliers,r_ms,c_ms,sift_ms,r_log10_nfa,r_correlation\n";
   }
@@ -121,10 +133,15 @@ int main(int argc, char** argv) {
     if (!only.empty() && spec.name != only) continue;
     const eval::RealisticSet set(spec);
     if (!dump.empty()) {  // the references and the first frames, to look at
+      const auto write = [&](const std::string& name, const cv::Mat& image) {
+        if (!cv::imwrite(dump + "/" + name, image)) {
+          std::fprintf(stderr, "bench_realistic: %s/%s: cannot write\n", dump.c_str(), name.c_str());
+          std::exit(1);
+        }
+      };
       for (size_t k = 0; k < set.objects().size(); ++k)
-        cv::imwrite(dump + "/" + spec.name + "_ref_" + std::to_string(k) + ".png", set.objects()[k].photo.image);
-      for (int i = 0; i < std::min(frames, 12); ++i)
-        cv::imwrite(dump + "/" + spec.name + "_frame_" + std::to_string(i) + ".png", set.frame(i).image);
+        write(spec.name + "_ref_" + std::to_string(k) + ".png", set.objects()[k].photo.image);
+      for (int i = 0; i < std::min(frames, 12); ++i) write(spec.name + "_frame_" + std::to_string(i) + ".png", set.frame(i).image);
       continue;
     }
     if (diagnose) {  // the upper bound: true correspondences present in the frames
@@ -187,6 +204,10 @@ int main(int argc, char** argv) {
              << r.refgrasp.ms << ',' << r.classic.ms << ',' << r.sift_ms << ',' << r.refgrasp.log10_nfa << ','
              << r.refgrasp.correlation << '\n';
   }
+  if (rows.is_open() && !rows.flush()) {
+    std::fprintf(stderr, "bench_realistic: %s: cannot write\n", csv.c_str());
+    return 1;
+  }
   std::printf("Bins where refgrasp finds less or has fewer poses ok than the classic pipeline: %s\n",
               losses.empty() ? "none" : "");
   for (const auto& l : losses) std::printf("  %s\n", l.c_str());
@@ -198,4 +219,8 @@ int main(int argc, char** argv) {
     for (const auto& d : c.details) std::printf("  %s\n", d.c_str());
   }
   return 0;
+}
+catch (const std::exception& e) {  // a missing or unreadable input: one line, not an abort
+  std::fprintf(stderr, "bench_realistic: %s\n", e.what());
+  return 1;
 }

@@ -18,7 +18,7 @@ using bench::median;
 
 }  // namespace
 
-int main() {
+int main() try {
   const std::string src = REFGRASP_SOURCE_DIR;
   const sim::Scenario s = sim::loadScenario(src + "/config/scenarios/table_clutter.yaml");
   const StereoRig rig = loadStereoRig(src + "/config/cameras/bb2_rig.yaml");
@@ -66,4 +66,8 @@ int main() {
   std::printf("(medians of %d frames per case after %d warm-up frames; the eyes render on two threads;\n"
               " target: > 48 stereo fps)\n", kFrames, kWarmup);
   return 0;
+}
+catch (const std::exception& e) {  // a missing or unreadable input: one line, not an abort
+  std::fprintf(stderr, "bench_render: %s\n", e.what());
+  return 1;
 }

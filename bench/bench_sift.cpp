@@ -161,7 +161,7 @@ __attribute__((noinline)) void profiledRegion(F&& f) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
   int frames = 200, threads = 2;
   uint64_t seed = 1;
   std::string texture = "targets/poster_concert.png", only, profile;
@@ -194,8 +194,7 @@ int main(int argc, char** argv) {
         return 2;
       }
     } else {
-      std::fprintf(stderr, "bench_sift: unknown argument '%s' (see --help)\n", a.c_str());
-      return 2;
+      bench::rejectArgument("bench_sift", a, {"--frames", "--threads", "--seed", "--texture", "--profile", "--only"});
     }
   }
   const auto run_start = Clock::now();
@@ -553,4 +552,8 @@ int main(int argc, char** argv) {
   std::printf("bench_sift ran in %.0f s (rendering included)\n",
               std::chrono::duration<double>(Clock::now() - run_start).count());
   return 0;
+}
+catch (const std::exception& e) {  // a missing or unreadable input: one line, not an abort
+  std::fprintf(stderr, "bench_sift: %s\n", e.what());
+  return 1;
 }

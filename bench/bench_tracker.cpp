@@ -69,7 +69,7 @@ double percentile(std::vector<double> v, double q) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
   int frames = 120, threads = 1;
   std::string texture = "targets/cereal_box.png";
   for (int i = 1; i < argc; ++i) {
@@ -84,8 +84,7 @@ int main(int argc, char** argv) {
     } else if (a == "--texture" && i + 1 < argc) {
       texture = argv[++i];
     } else {
-      std::fprintf(stderr, "bench_tracker: unknown argument '%s' (see --help)\n", a.c_str());
-      return 2;
+      bench::rejectArgument("bench_tracker", a, {"--frames", "--threads", "--texture"});
     }
   }
   cv::setNumThreads(threads);
@@ -163,4 +162,8 @@ int main(int argc, char** argv) {
                 maxOf(row.wall), median(row.cpu), row.calls);
   }
   return 0;
+}
+catch (const std::exception& e) {  // a missing or unreadable input: one line, not an abort
+  std::fprintf(stderr, "bench_tracker: %s\n", e.what());
+  return 1;
 }

@@ -8,6 +8,10 @@
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
+#include <exception>
+#include <filesystem>
+#include <fstream>
+#include <initializer_list>
 #include <string>
 #include <vector>
 
@@ -68,6 +72,41 @@ inline long long intArg(const char* tool, const char* option, const char* text, 
     std::exit(2);
   }
   return static_cast<long long>(v);
+}
+
+/// An argument no option of the tool took: one line on stderr and exit 2. An option that takes
+/// a value (listed in value_options) given last, without it: "<tool>: <option>: missing value";
+/// anything else: "<tool>: unknown argument '<arg>'".
+[[noreturn]] inline void rejectArgument(const char* tool, const std::string& arg,
+                                        std::initializer_list<const char*> value_options) {
+  for (const char* o : value_options)
+    if (arg == o) {
+      std::fprintf(stderr, "%s: %s: missing value (see --help)\n", tool, o);
+      std::exit(2);
+    }
+  std::fprintf(stderr, "%s: unknown argument '%s' (see --help)\n", tool, arg.c_str());
+  std::exit(2);
+}
+
+/// Opens an output file before the long run that fills it, so that a path that cannot be written
+/// fails at once (one line "<tool>: <path>: cannot write (does the folder exist?)", exit 2)
+/// instead of after the run, with its rows lost.
+inline void openOutput(const char* tool, const std::string& path, std::ofstream& out) {
+  out.open(path);
+  if (!out) {
+    std::fprintf(stderr, "%s: %s: cannot write (does the folder exist?)\n", tool, path.c_str());
+    std::exit(2);
+  }
+}
+
+/// An existing folder for an option that writes into one; otherwise one line
+/// "<tool>: <option>: <path>: not a folder" and exit 2.
+inline void requireFolder(const char* tool, const char* option, const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::is_directory(path, ec)) {
+    std::fprintf(stderr, "%s: %s: %s: not a folder\n", tool, option, path.c_str());
+    std::exit(2);
+  }
 }
 
 /// Median of the samples (the mean of the two middle ones for an even count); NaN when empty.

@@ -54,7 +54,7 @@ void usage() {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
   int frames = 30, domain = 231;
   double rate = 30, seconds = 10;
   bool track = false;
@@ -238,4 +238,8 @@ int main(int argc, char** argv) {
                 after.tracked - before.tracked, poses, poses / elapsed, after.detect_ms_median);
   std::printf("Bare detector rate on this machine: %.1f frames/s (1 / median)\n", 1e3 / median(rows[0].bare_ms));
   return 0;
+}
+catch (const std::exception& e) {  // a missing or unreadable input: one line, not an abort
+  std::fprintf(stderr, "bench_vision_component: %s\n", e.what());
+  return 1;
 }
