@@ -5,6 +5,7 @@
 // bins where refgrasp finds less than the classic pipeline, and false positives on photo clutter.
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -62,11 +63,6 @@ int main(int argc, char** argv) try {
       seed = static_cast<uint64_t>(bench::intArg("bench_realistic", "--seed", argv[++i], 0));
     } else if (a == "--set" && i + 1 < argc) {
       only = argv[++i];
-      if (only != "photos" && only != "procedural" && only != "far_oblique") {
-        std::fprintf(stderr, "bench_realistic: --set: expected photos, procedural or far_oblique, got '%s'\n",
-                     only.c_str());
-        return 2;
-      }
     } else if (a == "--pose" && i + 1 < argc) {
       const std::string p = argv[++i];
       if (p != "paper" && p != "refined") {
@@ -111,7 +107,15 @@ int main(int argc, char** argv) try {
       bench::rejectArgument("bench_realistic", a, {"--frames", "--clutter", "--seed", "--set", "--pose", "--min-inliers", "--max-log10-nfa", "--min-correlation", "--detector-config", "--min-distance-bin", "--dump", "--csv"});
     }
   }
-  for (const auto& spec : eval::realisticSets(seed, frames)) {  // every set has this many distance bins
+  const std::vector<eval::RealisticSetSpec> specs = eval::realisticSets(seed, frames);
+  std::string names;  // "photos, procedural or far_oblique"
+  for (size_t k = 0; k < specs.size(); ++k)
+    names += (k == 0 ? "" : k + 1 == specs.size() ? " or " : ", ") + specs[k].name;
+  if (!only.empty() && std::none_of(specs.begin(), specs.end(), [&](const auto& sp) { return sp.name == only; })) {
+    std::fprintf(stderr, "bench_realistic: --set: expected %s, got '%s'\n", names.c_str(), only.c_str());
+    return 2;
+  }
+  for (const auto& spec : specs) {
     const int D = static_cast<int>(spec.distance_edges_m.size()) - 1;
     if (min_bin >= D) {
       std::fprintf(stderr, "bench_realistic: --min-distance-bin: expected an integer <= %d, got '%d'\n", D - 1, min_bin);
@@ -129,7 +133,7 @@ int main(int argc, char** argv) try {
   }
   std::vector<std::string> losses;
   std::vector<eval::SetObject> all_objects;
-  for (const auto& spec : eval::realisticSets(seed, frames)) {
+  for (const auto& spec : specs) {
     if (!only.empty() && spec.name != only) continue;
     const eval::RealisticSet set(spec);
     if (!dump.empty()) {  // the references and the first frames, to look at
