@@ -73,6 +73,16 @@ const char* toString(GraspPhase p) {
   return "?";
 }
 
+const char* toString(GraspSubStep s) {
+  switch (s) {
+    case GraspSubStep::kReach: return "reach";
+    case GraspSubStep::kClose: return "close";
+    case GraspSubStep::kLift: return "lift";
+    case GraspSubStep::kHold: return "hold";
+  }
+  return "?";
+}
+
 GraspController::GraspController(robot::Robot& robot, TargetEstimator& estimator, const Pose& oMg,
                                  const Eigen::Vector3d& object_centre_o,
                                  const GraspOptions& options)
@@ -148,7 +158,7 @@ void GraspController::enter(GraspPhase p, Seconds t, const std::string& outcome,
   }
   if (p == GraspPhase::kApproach) base_task_.restart();
   if (p == GraspPhase::kGrasp) {
-    grasp_step_ = "reach";
+    grasp_step_ = GraspSubStep::kReach;
     step_started_ = t;
   }
 }
@@ -202,7 +212,7 @@ GraspStep GraspController::step(Seconds t, Seconds dt) {
     }
     // Frames are grabbed only when they will be looked at (a simulated camera renders on grab).
     const bool target_phase = phase_ == GraspPhase::kApproach || phase_ == GraspPhase::kAlign ||
-                              (phase_ == GraspPhase::kGrasp && grasp_step_ == "reach");
+                              (phase_ == GraspPhase::kGrasp && grasp_step_ == GraspSubStep::kReach);
     const bool search_look = phase_ == GraspPhase::kSearch && search_cmd_.look;
     const std::string problem = observe(t, search_look || target_phase,
                                         search_look ? search_cmd_.look_after : -1e300, &s.it);
@@ -411,10 +421,10 @@ void GraspController::decideGrasp(Seconds t, GraspIteration* it) {
     return;
   }
   const robot::RobotState& s = robot_.state();
-  detail_ = grasp_step_;
-  if (grasp_step_ == "reach") {
+  detail_ = toString(grasp_step_);
+  if (grasp_step_ == GraspSubStep::kReach) {
     if (!targetUsable(t, it)) return;
-    detail_ = grasp_step_;
+    detail_ = toString(grasp_step_);
     const Pose wMb_now = wMb();
     const Pose wMg = *wMo_ * oMg_;
     // e* slides from the pre-grasp pose to g along z_g: a straight line at grasp_speed_mps.
@@ -435,16 +445,16 @@ void GraspController::decideGrasp(Seconds t, GraspIteration* it) {
       report_.close_rotation_error_rad = rotationError(wMe, wMg);
       stopMotion();
       robot_.gripper().close();
-      grasp_step_ = "close";
+      grasp_step_ = GraspSubStep::kClose;
       step_started_ = t;
       it->event = "closing";
     }
     return;
   }
   stopMotion();
-  if (grasp_step_ == "close") {
+  if (grasp_step_ == GraspSubStep::kClose) {
     if (s.gripper == robot::GripperPhase::kHolding) {
-      grasp_step_ = "lift";
+      grasp_step_ = GraspSubStep::kLift;
       step_started_ = t;
       lift_start_bMe_ = robot_.arm().bMe();
       it->event = "holding";
@@ -457,14 +467,14 @@ void GraspController::decideGrasp(Seconds t, GraspIteration* it) {
     finish(false, "dropped", at("the object slipped out of the gripper", t), t, it);
     return;
   }
-  if (grasp_step_ == "lift") {
+  if (grasp_step_ == GraspSubStep::kLift) {
     const double lifted = robot_.arm().bMe().t.z() - lift_start_bMe_.t.z();
     if (lifted < opt_.lift_m) {
       Twist up;
       up.v.z() = opt_.lift_speed_mps;
       robot_.arm().setVelocity(robot::ArmFrame::kBase, up);
     } else {
-      grasp_step_ = "hold";
+      grasp_step_ = GraspSubStep::kHold;
       step_started_ = t;
     }
     it->error_position_m = std::max(0.0, opt_.lift_m - lifted);

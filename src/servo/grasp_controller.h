@@ -95,6 +95,11 @@ struct GraspOptions {
 enum class GraspPhase { kSearch, kApproach, kAlign, kGrasp, kDone, kFailed };
 const char* toString(GraspPhase p);  ///< "search", "approach", "align", "grasp", "done", "failed"
 
+/// The grasp phase's sub-steps, in order: the servo slides the gripper onto the grasp frame
+/// (reach), the gripper closes (close), the arm lifts (lift), the hold is checked (hold).
+enum class GraspSubStep { kReach, kClose, kLift, kHold };
+const char* toString(GraspSubStep s);  ///< "reach", "close", "lift", "hold" (control.jsonl's detail)
+
 /// One control period, everything a log line needs to replay it.
 struct GraspIteration {
   Seconds t = 0;
@@ -214,7 +219,7 @@ class GraspController {
   std::optional<BaseGoal> goal_;
   std::optional<Seconds> unreachable_since_;  ///< approach: first estimate in a row without a reach
   Seconds grasp_started_ = 0;
-  std::string grasp_step_;
+  GraspSubStep grasp_step_ = GraspSubStep::kReach;
   Seconds step_started_ = 0;
   Pose lift_start_bMe_;
 };
