@@ -17,7 +17,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-const char* kDescription = R"(Makes an object definition (the YAML of config/objects/, README "Object definition") from one
+const char* kDescription = R"(Makes an object definition (config/objects/*.yaml, docs/formats.md "Object definition") from one
 photo of a planar object and the photo's camera file, with the 6-DOF reference pose from either
   --corners u1,v1,...,u4,v4 --size W,H   the corners TL, TR, BR, BL (photo px) of a rectangle of
                                          W x H metres on the object (planar PnP); the pattern

@@ -1,4 +1,4 @@
-// record: any frame source to a refgrasp recording (README "Recording format").
+// record: any frame source to a refgrasp recording (docs/formats.md "Recording").
 #include <unistd.h>
 
 #include <CLI/CLI.hpp>

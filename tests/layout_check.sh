@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The dependency rules of DEVELOPERS.md, checked on the source tree (ctest: Layout.*).
+# The dependency rules of docs/architecture.md, checked on the source tree (ctest: Layout.*).
 # Usage: tests/layout_check.sh [SOURCE_DIR]. Prints every violation; exit 1 if there is one.
 set -u
 cd "${1:-$(dirname "$0")/..}" || exit 2

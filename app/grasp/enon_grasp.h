@@ -12,7 +12,7 @@
 
 namespace refgrasp::grasp_app {
 
-/// Exit status of enon_grasp (README "enon_grasp").
+/// Exit status of enon_grasp (docs/tools/enon_grasp.md "Exit status").
 enum ExitCode {
   kExitGrasped = 0,     ///< the target is held after the lift
   kExitNoGrasp = 1,     ///< a phase failed: not_found, timeout, unreachable, missed, dropped, lost

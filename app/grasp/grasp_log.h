@@ -1,5 +1,5 @@
 #pragma once
-// What enon_grasp writes besides its summary (README "enon_grasp"):
+// What enon_grasp writes besides its summary (docs/tools/enon_grasp.md "Outputs"):
 //   --log DIR    a refgrasp recording of the camera frames the controller used (recording.json,
 //                calib/, frames/, index.jsonl with capture state, robot state and ground truth;
 //                pose_replay reads it back) plus DIR/control.jsonl, one JSON line per control

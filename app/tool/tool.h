@@ -1,5 +1,5 @@
 #pragma once
-// What every refgrasp command-line tool does the same way (README "Exit status"):
+// What every refgrasp command-line tool does the same way (docs/errors.md):
 //   tool::run()        one top-level handler: any exception becomes ONE line "<tool>: <problem>"
 //                      on stderr and the tool's documented exit code; stdout is flushed and a
 //                      failed write (a full disk, a closed pipe) is an error, never a silent loss;

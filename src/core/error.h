@@ -24,7 +24,7 @@ class ConfigError : public std::runtime_error {
 };
 
 /// An output (a file, stdout) that could not be written: "<file>: <problem>", one line. Tools
-/// exit with their "output failed" code (README), never silently losing data.
+/// exit with their "output failed" code (docs/errors.md), never silently losing data.
 class OutputError : public std::runtime_error {
  public:
   OutputError(const std::string& file, const std::string& problem);

@@ -1,10 +1,10 @@
 #pragma once
-// Detections as JSON: the documented detect_object line (README "detect_object"), for every tool
-// that writes detections. Field order: the caller's `base` fields (e.g. "image", "right"),
-// "found", then when found "homography" (9 numbers row-major, undistorted reference px ->
-// undistorted image px, H(2,2) = 1), "corners" ([u, v] x 4, TL TR BR BL, image px), "R" and "t"
-// (cMo, core/json.h; only with a pose), "inliers"; stereo lines then "eyes"; tagged lines
-// "object" (name) and "instance"; last "time_ms" {"extract","match","pose","total"}.
+// Detections as JSON: the documented detect_object line (docs/formats.md "detect_object's JSON
+// line"), for every tool that writes detections. Field order: the caller's `base` fields (e.g.
+// "image", "right"), "found", then when found "homography" (9 numbers row-major, undistorted
+// reference px -> undistorted image px, H(2,2) = 1), "corners" ([u, v] x 4, TL TR BR BL, image px),
+// "R" and "t" (cMo, core/json.h; only with a pose), "inliers"; stereo lines then "eyes"; tagged
+// lines "object" (name) and "instance"; last "time_ms" {"extract","match","pose","total"}.
 #include <string>
 #include <vector>
 

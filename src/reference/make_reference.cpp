@@ -274,8 +274,8 @@ void writeObjectDefinition(const std::string& yaml_path, const std::string& name
   std::ofstream out(yaml_path);
   if (!out) throw OutputError(yaml_path, std::string("cannot open for writing: ") + std::strerror(errno));
   const Eigen::Vector3d t = ref.cMo.t, rv = ref.cMo.rotationVector();
-  out << "# Object definition (README \"Object definition\") made by make_reference (" << ref.method
-      << ", " << yamlNumber(ref.width_m) << " x " << yamlNumber(ref.height_m)
+  out << "# Object definition (docs/formats.md \"Object definition\") made by make_reference ("
+      << ref.method << ", " << yamlNumber(ref.width_m) << " x " << yamlNumber(ref.height_m)
       << " m, corner reprojection RMS " << yamlNumber(ref.rms_px) << " px).\n"
       << "# Object frame: origin at the centre of the " << (ref.method == "corners" ? "rectangle" : "tag")
       << ", x along its top edge, y along its left edge, z into the plane.\n"

@@ -1,8 +1,8 @@
 #pragma once
-// Making an object definition (config/objects/*.yaml, README "Object definition") from one photo
-// of a planar object: the 6-DOF reference pose the detector needs, either from four clicked
-// corners of a rectangle of known size (planar PnP) or from an AprilTag lying on the object's
-// plane (ViSP's vpDetectorAprilTag finds the tag, the same planar PnP gives its pose).
+// Making an object definition (config/objects/*.yaml, docs/formats.md "Object definition") from one
+// photo of a planar object: the 6-DOF reference pose the detector needs, either from four clicked
+// corners of a rectangle of known size (planar PnP) or from an AprilTag lying on the object's plane
+// (ViSP's vpDetectorAprilTag finds the tag, the same planar PnP gives its pose).
 //
 // Object frame (DEVELOPERS.md planar convention): origin at the centre of the rectangle (of the
 // tag), x along its top edge (TL -> TR), y along its left edge (TL -> BL), z = 0 on the plane and

@@ -1,5 +1,5 @@
 #pragma once
-// What pose_replay writes into OUTDIR (README "pose_replay"):
+// What pose_replay writes into OUTDIR (docs/tools/pose_replay.md "Outputs"):
 //   poses.jsonl     one line per frame (per object and frame with several objects): "frame"
 //                   (0-based), "index" (device counter), "stamp", ["object"], "mode"
 //                   (detect/track/lost), the detect_object fields ("found", "homography",

@@ -177,8 +177,9 @@ TEST_F(DetectObjectCli, BadInputGivesOneLineErrorsAndExitCodes) {
   EXPECT_NE(run(path("scene.png")).status, 0);  // --object is required
 }
 
-// README: `detect_object --object OBJ.yaml [...] IMAGE...`: the repeatable --object takes one file,
-// so the images after it are images; options and images in any order, --opt=value too.
+// docs/tools/detect_object.md: `detect_object --object OBJ.yaml [...] IMAGE...`: the repeatable
+// --object takes one file, so the images after it are images; options and images in any order,
+// --opt=value too.
 TEST_F(DetectObjectCli, ImagesAndOptionsInAnyOrder) {
   const std::string cam = path("scene_cam.yaml"), scene = path("scene.png"), clutter = path("clutter.png");
   const std::vector<std::string> orders = {

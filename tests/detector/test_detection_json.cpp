@@ -1,5 +1,5 @@
-// The detect_object line codec: exact field names and order (README contract), found:false lines
-// without geometry, tags, stereo lines with the fused pose.
+// The detect_object line codec: exact field names and order (docs/formats.md contract),
+// found:false lines without geometry, tags, stereo lines with the fused pose.
 #include <gtest/gtest.h>
 
 #include "detector/detection_json.h"

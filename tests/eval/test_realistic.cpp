@@ -100,7 +100,7 @@ TEST(RealisticScene, ReferencePhotoGroundTruth) {
 
 // refgrasp and the classic pipeline on the same frames of the report split, every set: refgrasp
 // finds at least as many, has at least as many poses within 2 deg / 2 %, and reports nothing
-// wrong. (The per-bin tables of README come from bench_realistic on 160 frames per set.)
+// wrong. (The per-bin tables of docs/results.md come from bench_realistic on 160 frames per set.)
 TEST(RealisticSets, RefgraspFindsAtLeastAsManyAsTheClassicPipeline) {
   EvalOptions opt;
   opt.classic_own_sift = false;  // same keypoints as cv::SIFT (test_sift_fast.cpp), 3x cheaper
@@ -340,11 +340,11 @@ TEST(RealisticSets, AWideAlignmentThatVerifiesClearlyBetterCorrectsFewFeatureFit
   EXPECT_EQ(r.wrong_on, 0);
 }
 
-// ... but not on a reference with repeat periods. Report split (seed 1001) 2D photos/22 is a
-// hotel facade whose features fit one window period off, which the checks refuse; without the
-// exclusion the rule took the wide alignment there (photometrically as good, a period off) and
-// reported it 21.5 px off. No development frame showed this: the frame was found on the report
-// split (README says so), and is kept here so that the exclusion cannot be dropped unnoticed.
+// ... but not on a reference with repeat periods. Report split (seed 1001) 2D photos/22 is a hotel
+// facade whose features fit one window period off, which the checks refuse; without the exclusion
+// the rule took the wide alignment there (photometrically as good, a period off) and reported it
+// 21.5 px off. No development frame showed this: the frame was found on the report split
+// (docs/results.md says so), and is kept here so that the exclusion cannot be dropped unnoticed.
 TEST(RealisticSets, AVerifiedWideAlignmentIsNotTakenOnARepeatedMotif) {
   EvalOptions on = quickEvalOptions(), off = quickEvalOptions();
   on.two_d = off.two_d = true;

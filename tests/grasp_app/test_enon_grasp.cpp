@@ -1,5 +1,5 @@
-// enon_grasp: its command line as README documents it (summary line, exit codes, --log as a
-// recording pose_replay reads back, --video), the session in process, and bad input.
+// enon_grasp: its command line as docs/tools/enon_grasp.md documents it (summary line, exit codes,
+// --log as a recording pose_replay reads back, --video), the session in process, and bad input.
 #include <gtest/gtest.h>
 
 #include <algorithm>

@@ -77,12 +77,12 @@ TEST(EnonGraspDds, GraspsOnTheDefaultScenarioAgainstSimRobotNode) {
   EXPECT_EQ(truth["bad_commands"], 0);
 }
 
-// The on-robot pairing (README: --backend dds --camera bb2): the robot on the DDS bus, the frames
-// from a camera on this computer. No FireWire camera here, so a recording stands in for the
-// Bumblebee2 (the same option, the same re-stamping onto the loop's clock): every frame the run
-// logs is the recording's (uniform gray: nothing to find), none is the node's image_raw, stamped
-// on the loop's clock with the head pose the DDS states give at that time; the run
-// ends without a grasp (exit 1) and the node saw no bad command.
+// The on-robot pairing (docs/tools/enon_grasp.md: --backend dds --camera bb2): the robot on the DDS
+// bus, the frames from a camera on this computer. No FireWire camera here, so a recording stands in
+// for the Bumblebee2 (the same option, the same re-stamping onto the loop's clock): every frame the
+// run logs is the recording's (uniform gray: nothing to find), none is the node's image_raw,
+// stamped on the loop's clock with the head pose the DDS states give at that time; the run ends
+// without a grasp (exit 1) and the node saw no bad command.
 TEST(EnonGraspDds, TheCameraOptionPairsTheDdsRobotWithALocalCamera) {
   const NodeRun run("refgrasp_enon_grasp_dds_camera");
   const std::filesystem::path& dir = run.dir;

@@ -1,4 +1,5 @@
-// End-to-end grasp statistics on the simulated enon (ctest GraspStatistics.*; README "enon_grasp").
+// End-to-end grasp statistics on the simulated enon (ctest GraspStatistics.*; docs/results.md
+// "enon_grasp statistics").
 //
 //   grasp_statistics run SCENARIO.yaml vision|oracle FIRST_SEED LAST_SEED OUT.jsonl
 //       one grasp per seed with vision (rendered frames, the tracker pipeline) or with the oracle

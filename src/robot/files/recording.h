@@ -1,5 +1,5 @@
 #pragma once
-// refgrasp recordings: a folder a person can open (public contract, README "Recording format").
+// refgrasp recordings: a folder a person can open (public contract, docs/formats.md "Recording").
 //
 //   DIR/recording.json   {"format": "refgrasp-recording", "version": 1, "kind": "stereo"|"mono",
 //                         "calibration": {"rig", "left", "right"} | {"camera"} (paths in DIR),

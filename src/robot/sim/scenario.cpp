@@ -37,7 +37,7 @@ namespace fs = std::filesystem;
 
 constexpr double kPlaneThickness = 0.001;  // solid of a plane object, behind its face
 constexpr double kSlab = 0.5;              // thickness of the floor's and the walls' solids
-// Bounds that keep a run finite and its buffers small (README "Scenarios").
+// Bounds that keep a run finite and its buffers small (config/scenarios/README.md).
 constexpr double kMaxDurationS = 3600;
 constexpr size_t kMaxObjects = 256;
 
