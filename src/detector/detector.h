@@ -39,7 +39,7 @@
 
 namespace refgrasp::detector {
 
-struct RegisteredObject;  // detector.cpp: model, reference index, pyramid
+struct RegisteredObject;  // detector/registered_object.h: model, reference index, pyramid
 
 /// Every field can be set in a YAML file (config/detector.yaml, loadDetectorOptions).
 struct DetectorOptions {

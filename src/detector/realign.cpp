@@ -1,0 +1,80 @@
+#include "detector/realign.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "detector/periods.h"
+#include "detector/verify.h"
+
+namespace refgrasp::detector {
+
+namespace {
+
+// A dense refinement that converged well but was refused for moving a corner too far.
+bool refusedForDistance(const DenseRefineResult& d, const DenseRefineOptions& opt) {
+  return !d.ok && d.corner_shift_px > opt.max_corner_shift_px && d.correlation >= opt.min_correlation;
+}
+
+// The dense refinement from H with room to move: half the pattern's diagonal (ok = false when
+// that room is not finite).
+DenseRefineResult wideRefine(const RegisteredObject& obj, const DetectorOptions& opt, const Eigen::Matrix3d& H,
+                             const cv::Mat& image, const Intrinsics& camera) {
+  DenseRefineOptions wide = opt.dense;
+  wide.max_corner_shift_px = std::max(wide.max_corner_shift_px, 0.5 * patternDiagonal(obj, H));
+  if (!std::isfinite(wide.max_corner_shift_px)) return DenseRefineResult{};
+  return refineDense(obj, H, image, camera, wide);
+}
+
+// cand, aligned by its wide refinement `wide` when that is trusted: by its ECC correlation, or
+// because its warped reference verifies clearly better than cand's (never on a reference with
+// repeat periods: there a consensus one period off verifies as well). *dense gets `wide` when
+// it is taken.
+MatchCandidate adoptWideAlignment(const RegisteredObject& obj, const VerifyOptions& vo, const MatchCandidate& cand,
+                                  const DenseRefineResult& wide, const cv::Mat& image, const Intrinsics& camera,
+                                  DenseRefineResult* dense) {
+  if (!wide.ok) return cand;
+  bool take = vo.realign_trusted_correlation < 1 && wide.correlation >= vo.realign_trusted_correlation;
+  if (!take && vo.realign_verified_correlation <= 1 && movedByPeriods(obj, cand.H).empty()) {
+    const std::vector<Eigen::Vector2d> region = verificationRegion(obj, cand);
+    const VerifyResult at_wide = verifyInstance(obj.pyramid, region, image, camera, wide.H, vo);
+    if (at_wide.ok && at_wide.correlation >= vo.realign_verified_correlation &&
+        at_wide.strong_cells >= vo.realign_verified_cells) {
+      const VerifyResult at_cand = verifyInstance(obj.pyramid, region, image, camera, cand.H, vo);
+      take = at_wide.correlation >= at_cand.correlation + vo.realign_verified_gain;
+    }
+  }
+  if (!take) return cand;
+  MatchCandidate out = cand;
+  out.H = wide.H;
+  *dense = wide;
+  return out;
+}
+
+}  // namespace
+
+MatchCandidate realign(const RegisteredObject& obj, const DetectorOptions& opt, const MatchCandidate& cand,
+                       const Features& scene, const GridIndex& grid, const Intrinsics& camera,
+                       DenseRefineResult* dense) {
+  const cv::Mat& image = scene.image;
+  *dense = refineDense(obj, cand.H, image, camera, opt.dense);
+  if (!refusedForDistance(*dense, opt.dense)) return cand;
+  const DenseRefineResult wide = wideRefine(obj, opt, cand.H, image, camera);
+  if (!wide.ok) return cand;
+  const std::optional<MatchCandidate> again = matchUnderHomography(obj.index, scene, grid, opt.match, wide.H);
+  if (!again) return adoptWideAlignment(obj, opt.verify, cand, wide, image, camera, dense);
+  const bool supported = again->inliers.size() >= cand.inliers.size() ||
+                         (std::isfinite(cand.log10_nfa) && again->log10_nfa <= cand.log10_nfa);
+  if (!supported) return adoptWideAlignment(obj, opt.verify, cand, wide, image, camera, dense);
+  const VerifyResult before =
+      verifyInstance(obj.pyramid, verificationRegion(obj, cand), image, camera, cand.H, opt.verify);
+  const VerifyResult after =
+      verifyInstance(obj.pyramid, verificationRegion(obj, *again), image, camera, again->H, opt.verify);
+  if (!(after.ok && after.correlation > before.correlation))
+    return adoptWideAlignment(obj, opt.verify, cand, wide, image, camera, dense);
+  *dense = refineDense(obj, again->H, image, camera, opt.dense);
+  if (!refusedForDistance(*dense, opt.dense)) return *again;
+  return adoptWideAlignment(obj, opt.verify, *again, wideRefine(obj, opt, again->H, image, camera), image,
+                            camera, dense);
+}
+
+}  // namespace refgrasp::detector

@@ -1,0 +1,86 @@
+#include "detector/search_region.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "detector/homography.h"
+
+namespace refgrasp::detector {
+
+namespace {
+
+// The region a predicted pose gives: the projected pattern's bounding box (real image px) grown
+// by roi_margin, and the reference keypoint sizes scaled by the predicted homography's local
+// scale, widened by scale_margin. False when the pattern is not in front of the camera.
+bool predictRegion(const RegisteredObject& obj, const ObjectPrior& p, const Intrinsics& cam,
+                   cv::Rect* roi, double* min_size, double* max_size, double* margin_px) {
+  const PlanarTarget& t = *obj.model.target;
+  std::vector<Eigen::Vector2d> ref(4), und(4);
+  Eigen::Vector2d lo(1e300, 1e300), hi(-1e300, -1e300);
+  for (int i = 0; i < 4; ++i) {
+    const Eigen::Vector3d Xc = *p.cMo * t.corners_o[i];
+    if (!(Xc.z() > 1e-6)) return false;
+    ref[i] = t.corners_ref_px[i];
+    und[i] = projectPinhole(cam.K(), Xc);
+    const Eigen::Vector2d px = cam.project(Xc);
+    lo = lo.cwiseMin(px);
+    hi = hi.cwiseMax(px);
+  }
+  const Eigen::Matrix3d H = fitHomographyLeastSquares(ref, und);
+  if (!H.allFinite() || !lo.allFinite() || !hi.allFinite()) return false;
+  double smin = 1e300, smax = 0;
+  for (const cv::KeyPoint& k : obj.index.features.keypoints) {
+    const Eigen::Vector3d y = H * Eigen::Vector3d(k.pt.x, k.pt.y, 1);
+    const double u = y.x() / y.z(), v = y.y() / y.z();
+    Eigen::Matrix2d J;  // d(scene px) / d(reference px)
+    J << H(0, 0) - u * H(2, 0), H(0, 1) - u * H(2, 1), H(1, 0) - v * H(2, 0), H(1, 1) - v * H(2, 1);
+    const double s = k.size * std::sqrt(std::abs(J.determinant())) / std::abs(y.z());
+    if (!std::isfinite(s)) continue;
+    smin = std::min(smin, s);
+    smax = std::max(smax, s);
+  }
+  if (smax <= 0) return false;
+  *min_size = smin / p.scale_margin;
+  *max_size = smax * p.scale_margin;
+  // Grown by the margin, clamped just outside the image (the caller clips it to the image).
+  const double m = p.roi_margin * std::max(hi.x() - lo.x(), hi.y() - lo.y());
+  *margin_px = std::floor(m);
+  auto clampX = [&](double x) { return static_cast<int>(std::clamp(x, -1.0, cam.width + 1.0)); };
+  auto clampY = [&](double y) { return static_cast<int>(std::clamp(y, -1.0, cam.height + 1.0)); };
+  *roi = cv::Rect(cv::Point(clampX(std::floor(lo.x() - m)), clampY(std::floor(lo.y() - m))),
+                  cv::Point(clampX(std::ceil(hi.x() + m) + 1), clampY(std::ceil(hi.y() + m) + 1)));
+  return true;
+}
+
+}  // namespace
+
+Search searchFor(const RegisteredObject& obj, const ObjectPrior* prior, const DetectionQuery& q,
+                 const Intrinsics& camera) {
+  Search s;
+  if (!prior && q.only_priors) {
+    s.searched = false;
+    return s;
+  }
+  const cv::Rect full(0, 0, camera.width, camera.height);
+  cv::Rect roi = full;
+  if (prior) {
+    cv::Rect predicted;
+    double margin_px = 0;
+    const bool has_prediction = prior->cMo && obj.model.target &&
+                                predictRegion(obj, *prior, camera, &predicted, &s.region.min_size_px,
+                                              &s.region.max_size_px, &margin_px);
+    if (prior->roi.area() > 0) {
+      roi = prior->roi;
+    } else if (has_prediction) {
+      roi = predicted;
+      // The pattern lies margin_px inside the region: that much of the crop's context is there.
+      if (!q.roi || (roi & *q.roi) == roi) s.region.inner_margin_px = margin_px;
+    }
+  }
+  if (q.roi) roi &= *q.roi;
+  s.roi = roi & full;
+  s.region.roi = s.roi == full ? cv::Rect() : s.roi;
+  return s;
+}
+
+}  // namespace refgrasp::detector
