@@ -15,7 +15,7 @@ namespace refgrasp::robot {
 
 /// Which backend, with its own settings as text (from a config file or the command line).
 struct BackendConfig {
-  std::string backend;                        ///< "sim", later "dds", ...
+  std::string backend;                        ///< "sim" or "dds" (robot/backends.h registers them)
   std::map<std::string, std::string> params;  ///< e.g. {"scenario": "config/scenarios/x.yaml"}
   /// Where the configuration came from (file or "command line"), named in errors.
   std::string source;

@@ -5,8 +5,10 @@
 //
 // Layers:
 //   RobotHardware, StereoSource (robot/camera.h)  device backends, one folder each under
-//                                        src/robot/<backend>/ (sim/ now; later the real enon
-//                                        controller, dds/, and the Bumblebee2 over dc1394/)
+//                                        src/robot/<backend>/: sim/ (the simulated enon), dds/
+//                                        (a robot driver on the DDS bus, e.g. the real enon's),
+//                                        dc1394/ (the Bumblebee2), files/ (recordings, images,
+//                                        videos, webcams: frame sources only)
 //   Robot                                the aggregate a controller uses: Base, Head, Arm, Gripper,
 //                                        StereoCamera views, limits, arm DLS, the watchdog, stop().
 // Backends are built by name through robot/backend.h; nothing here knows any backend type.

@@ -109,10 +109,10 @@ struct GraspIteration {
   TargetStatus observed = TargetStatus::kNone;  ///< the estimator on this period's frame
   bool confirmed = false;    ///< the controller acts on a confirmed target in this period
   bool target_driven = false;  ///< this period's commands depend on the target (must be zero if !confirmed)
-  std::optional<robot::StereoFrame> frame;  ///< the frame given to the estimator, if any
-  /// Frames are grabbed only when wanted: in the search's looks and the target-driven phases,
-  /// at most every frame_period_s.
-  TargetObservation observation;            ///< its result
+  /// The frame given to the estimator, if any. Frames are grabbed only when wanted: in the
+  /// search's looks and the target-driven phases, at most every frame_period_s.
+  std::optional<robot::StereoFrame> frame;
+  TargetObservation observation;            ///< the estimator's result on `frame`
   /// Ground truth of the frame grabbed in this period, when it carries one (simulators; logs
   /// and evaluation only, never control), and that frame's device counter.
   std::vector<robot::ObjectTruth> truth;

@@ -59,8 +59,9 @@ class TargetEstimator {
 
 struct OracleOptions {
   double border_px = 4;          ///< every pattern corner at least this far inside the image
-  /// Shortest projected pattern side: smaller is too far to see (single-frame SIFT detection
-  /// of the shipped textures fails below ~35-40 px; the oracle is a little more generous).
+  /// Shortest projected pattern side: smaller is too far to see. A little below the size at
+  /// which single-frame SIFT detection of the shipped textures starts to fail: the oracle is
+  /// slightly more generous than vision, never less.
   double min_side_px = 32;
   double max_view_angle_rad = 1.2;  ///< between the pattern's normal and the line of sight
   void check() const;

@@ -1,5 +1,5 @@
 #pragma once
-// Frame-to-frame tracking of one planar object after a detection (issue 8, "Tracking").
+// Frame-to-frame tracking of one planar object after a detection.
 //
 // FrameTracker is the seam: the per-frame pipeline (servo/target_tracker.h) starts a tracker on
 // the frame of a detection at the detected pose and asks it for the pose in each next frame.

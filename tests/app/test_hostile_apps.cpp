@@ -1,4 +1,4 @@
-// Hostile input to every tool, as a careless or hostile user would give it (issue 11): each case
+// Hostile input to every tool, as a careless or hostile user would give it: each case
 // ends with ONE line on stderr naming the file or option and the problem, and the exit code the
 // tool documents; never a crash, a hang, a third-party message or CLI11's own codes (104-114).
 #include <gtest/gtest.h>
@@ -137,7 +137,7 @@ TEST(HostileDetectObject, BadFilesAndOptionsExit2AndAFullDiskExit3) {
   objectCase(objectFile("twice.yaml", kPose + "camera: " + kObjectCamera + "\n"), "twice.yaml: camera: given twice");
   objectCase(objectFile("nested.yaml", "reference_pose: {translation: [0, 0, 0.5], rotaton_vector: [0, 0, 0]}\n"),
              "reference_pose.rotaton_vector: unknown field (did you mean rotation_vector?)");
-  // The issue's example: 100,000 points had no answer after 30 s (quadratic simplicity test).
+  // 100,000 points: the simplicity test is quadratic, so the loader refuses more than 1000.
   std::string region = "pattern_region: [";
   for (int i = 0; i < 100000; ++i) region += (i ? ", [" : "[") + std::to_string(i % 400) + ", " + std::to_string(i % 7) + "]";
   objectCase(objectFile("region.yaml", kPose + region + "]\n"), "pattern_region: 100000 points, more than the limit of 1000");
@@ -213,7 +213,7 @@ TEST(HostileSimEnonDemo, BadOptionsFilesAndOutputsAreOneLineWithTheDocumentedCod
   const std::string file = write("plain_file2", "x");
   expectOneLine(run("sim_enon_demo", base + " --out " + file + "/sub --duration 0.1"), 3, file + "/sub: cannot create folder",
                 "--out below a file");
-  // The issue's crash: an uncaught cv::Exception from a 1e10 px motion blur.
+  // A 1e10 px motion blur: refused at load, never an exception from OpenCV at the first render.
   const std::string blur = scenarioWith("enon_blur", "  noise_sigma: 2.0", "  noise_sigma: 2.0\n  motion_blur_px: 1e10");
   expectOneLine(run("sim_enon_demo", "--enon " + kEnon + " --scenario " + blur + out), 2,
                 "camera.motion_blur_px: must be at most 256", blur);

@@ -1,5 +1,5 @@
 #pragma once
-// Test helpers for hostile input (issue 11): the one-line ConfigError a call throws, hostile
+// Test helpers for hostile input: the one-line ConfigError a call throws, hostile
 // images in memory, and variants of the shipped config files.
 #include <gtest/gtest.h>
 

@@ -1,4 +1,4 @@
-// Hostile input to the shared readers (issue 11): files that are not regular files, YAML that
+// Hostile input to the shared readers: files that are not regular files, YAML that
 // yaml-cpp accepts silently (a key twice, aliases, typos), camera files that half-parse, and
 // images that are bombs, truncated or corrupt. Each gives ONE line naming the file and the
 // problem, never a hang, a crash or a decoder's own message on stderr.
@@ -183,7 +183,8 @@ TEST(CameraFileStrict, VispXmlIsReadStrictlyWithoutRegexRecursion) {
   std::string nested;
   for (int i = 0; i < 50; ++i) nested += "<a>";
   EXPECT_NE(err("nest.xml", nested).find("nested deeper than 16"), std::string::npos);
-  // The old std::regex reader recursed once per character of a long text: a stack overflow.
+  // A long text is read without recursion (a std::regex reader recurses once per character:
+  // a stack overflow).
   EXPECT_NE(err("long.xml", head + "<model><type>" + std::string(2000000, 'x') + "</type></model></camera></root>")
                 .find("unsupported projection model"),
             std::string::npos);

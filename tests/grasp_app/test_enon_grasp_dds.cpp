@@ -1,7 +1,6 @@
-// enon_grasp --backend dds against sim_robot_node (issue 10, "The robot over DDS"): the same
-// search-approach-grasp, in real time, with the robot on the DDS bus (loopback, a private domain
-// and namespace, bounded in time). The simulator's ground truth at exit says whether the target
-// is held.
+// enon_grasp --backend dds against sim_robot_node: the same search-approach-grasp, in real time,
+// with the robot on the DDS bus (loopback, a private domain and namespace, bounded in time). The
+// simulator's ground truth at exit says whether the target is held.
 #include <gtest/gtest.h>
 
 #include <cmath>

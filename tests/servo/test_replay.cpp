@@ -315,11 +315,11 @@ TEST(PoseReplay, TrackingFollowsTheSequenceWithinTheDetectorsTolerances) {
     EXPECT_EQ(servo::ReplayReport::jsonLines(a[k], false), servo::ReplayReport::jsonLines(c[k], false)) << k;
 }
 
-// Issue 9's bar on a rendered sequence of three passes: the camera swings to a 72 deg oblique
-// view and back, slides until the target leaves the view and back, and slides until a panel
-// hides it and back (motion blur, noise). Detection alone misses the oblique views; tracking
-// gives a pose on more frames, within the detector's tolerances, with the modes following the
-// scene, and the same output twice.
+// Tracking against detection alone on a rendered sequence of three passes: the camera swings
+// to a 72 deg oblique view and back, slides until the target leaves the view and back, and
+// slides until a panel hides it and back (motion blur, noise). Detection alone misses the
+// oblique views; tracking gives a pose on more frames, within the detector's tolerances, with
+// the modes following the scene, and the same output twice.
 TEST(PoseReplay, TrackingGivesMorePosesThanDetectionAlone) {
   namespace rt = refgrasp::testing;
   rt::TrackingSequenceSpec spec;

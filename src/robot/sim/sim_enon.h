@@ -44,7 +44,7 @@
 // the odometry in RobotState carries the noise. Each frame's `truth` holds the true pose of every
 // world object that has a detector definition, in both eyes. With setRenderImages(false) (backend
 // setting `render: false`) frames come at the same rate with the same stamp, index, capture state
-// and truth, and empty images (oracle runs and fast tests: rendering a pair costs ~8 ms).
+// and truth, and empty images (oracle runs and fast tests: rendering is most of a frame's cost).
 //
 // Ground truth accessors (wMe, graspError, jointLimitMargins, collisions, ...) are for tests, logs
 // and evaluation, never for control.
@@ -156,7 +156,7 @@ class SimEnon : public robot::RobotHardware {
   double fingerGap() const { return fingerGapAt(time_); }
   /// The robot's collision shapes at the current state.
   RobotShapes shapes() const;
-  /// The nearest pair now (exact; a few microseconds).
+  /// The nearest pair now (exact; cheap enough for a log line every control period).
   Proximity nearest() const;
 
  private:
@@ -224,8 +224,8 @@ class SimEnon : public robot::RobotHardware {
   Pose eMo_held_;
   Pose wMg_grasped_;        ///< grasp frame of the held object when it was grasped
   Pose wMo_grasped_;        ///< ... and the object
-  int finger_exempt_ = -1;
-  int stuck_arm_joint_ = -1;  ///< index of faults.stuck_joint among the arm joints, -1 if none  ///< the item the fingers close on (not checked against the fingers)
+  int finger_exempt_ = -1;    ///< the item the fingers close on (not checked against the fingers)
+  int stuck_arm_joint_ = -1;  ///< index of faults.stuck_joint among the arm joints, -1 if none
   double gap_from_ = 0, gap_to_ = 0;  ///< finger gap moves linearly between these ...
   Seconds gap_t0_ = 0, gap_t1_ = 0;   ///< ... over this time interval
   double arm_lever_m_ = 0;  ///< bound of the distance from any arm joint axis to any point beyond it

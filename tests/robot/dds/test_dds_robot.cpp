@@ -46,7 +46,7 @@ robot::EnonModel testModel(double watchdog_s) {
 }
 
 /// The simulated enon served on the bus by a driver node stepping in real time on its own thread;
-/// with camera_rate_hz < 0 it has no camera (rendering costs a core at 48 Hz).
+/// with camera_rate_hz < 0 it has no camera (rendering at 48 Hz would load the machine).
 class SimOnBus {
  public:
   SimOnBus(int domain, const std::string& ns, const robot::EnonModel& model,

@@ -1,6 +1,7 @@
 // refgrasp's own interface exists twice: as ROS 2 .msg/.srv files (src/robot/dds/ros/refgrasp_msgs,
 // for ROS users) and as the hand-written IDL the component is built from. Both must list the same
-// fields in the same order with the same types, and the service must keep the issue's contract.
+// fields in the same order with the same types, and the service must keep its documented
+// contract (docs/component.md).
 #include <gtest/gtest.h>
 
 #include <fstream>
@@ -72,7 +73,7 @@ TEST(InterfaceFiles, IdlAndRosDefinitionsAgree) {
   const Fields request = msgFields(srv.substr(0, sep)), response = msgFields(srv.substr(sep + 5));
   EXPECT_EQ(idlFields(idl, "Detect_Request_"), request);
   EXPECT_EQ(idlFields(idl, "Detect_Response_"), response);
-  // The public contract of the issue, literally.
+  // The public contract (docs/component.md), literally.
   EXPECT_EQ(request, (Fields{{"string", "object_name"}, {"float64", "timeout_s"}}));
   EXPECT_EQ(response, (Fields{{"bool", "found"}, {"float64[9]", "rotation"}, {"float64[3]", "translation"},
                               {"string", "error"}}));

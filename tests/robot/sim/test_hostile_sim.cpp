@@ -1,4 +1,4 @@
-// Hostile values in the simulator's inputs (issue 11): a scenario or robot model asking for a
+// Hostile values in the simulator's inputs: a scenario or robot model asking for a
 // blur, a duration, a period or a count that would overflow, hang or exhaust memory is refused at
 // start-up with one line naming the file and field; a blur computed at run time is clamped.
 #include <gtest/gtest.h>
@@ -34,8 +34,8 @@ std::string enonError(const std::string& from, const std::string& to) {
 }  // namespace
 
 TEST(HostileSim, AHugeMotionBlurIsClampedNotASignedOverflow) {
-  // 5e9 px: the old kernel cast 5e9 to int (undefined; UBSan: "signed integer overflow" at
-  // degrade.cpp:33) and then asked for a (2^31 x 2^31) matrix.
+  // 5e9 px: cast to int, that length would overflow (undefined behaviour) and ask for a
+  // (2^31 x 2^31) kernel; clamped to kMaxMotionBlurPx it is the longest kernel.
   const cv::Mat k = motionBlurKernel(5e9, 0.3);
   const cv::Mat k_max = motionBlurKernel(kMaxMotionBlurPx, 0.3);
   ASSERT_EQ(k.size(), k_max.size());

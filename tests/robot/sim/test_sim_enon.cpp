@@ -370,7 +370,7 @@ TEST(SimEnon, FactoryBuildsTheSimBackendAndRejectsUnknownOnes) {
 
 TEST(SimEnon, ScenarioTargetIsGraspedByACartesianServoLoop) {
   // table_single with the robot parked in front of the table; the arm servoes its gripper frame
-  // onto the target's grasp frame (ground truth here; vision comes later), then closes. A 5-DOF
+  // onto the target's grasp frame (ground truth: this tests the simulator), then closes. A 5-DOF
   // arm reaches only some 6-DOF poses: the base is parked where the forearm can point straight
   // at the grasp frame (approach along +x_w), elbow below the shoulder line.
   Scenario sc =
