@@ -3,7 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <random>
 
+#include "robot/sim/degrade.h"
 #include "robot/sim/synthetic_scene.h"
 #include "detector/detector.h"
 
@@ -19,13 +21,12 @@ TEST(FalsePositives, NoDetectionOnClutterWithoutTheTargets) {
   const int kFrames = 500;
   int detections = 0, candidates_rejected_by_sanity = 0;
   double total_ms = 0;
+  std::mt19937_64 rng(100000);
+  sim::Degradation noise;
+  noise.noise_sigma = 2.0;  // sensor noise, as in the rendered target scenes
   for (int i = 0; i < kFrames; ++i) {
     cv::Mat img = clutterBackground(100000 + i);
-    cv::Mat noise(img.size(), CV_16S);
-    cv::randn(noise, 0, 2.0);  // sensor noise, as in the rendered target scenes
-    img.convertTo(img, CV_16S);
-    img += noise;
-    img.convertTo(img, CV_8U);
+    sim::degrade(img, noise, rng);
     const DetectionResult r = det.detect(img, cam);
     ASSERT_TRUE(r.ok) << r.error;
     total_ms += r.time_ms.total;
