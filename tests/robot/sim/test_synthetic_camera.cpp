@@ -48,8 +48,7 @@ TEST(SyntheticCamera, DisparityOfAFrontoParallelPlaneIsFBaselineOverDepth) {
     const SyntheticFrame f = cam.render(wallAt(z), Pose(), Twist(), 0);
     const double expected = 500 * 0.12 / z;  // the right eye sees the plane shifted left
     const double measured = -horizontalShift(f.left, f.right);
-    EXPECT_NEAR(measured, expected, 0.1) << "depth " << z;
-    std::printf("depth %.1f m: disparity %.3f px (expected %.3f)\n", z, measured, expected);
+    EXPECT_NEAR(measured, expected, 0.1) << "disparity at depth " << z << " m, px";
   }
 }
 
