@@ -21,6 +21,7 @@
 #include "robot/sim/synthetic_scene.h"
 #include "detector/detector.h"
 #include "detector/sift_fast.h"
+#include "eval/sift_equivalence.h"
 
 using namespace refgrasp;
 using namespace refgrasp::detector;
@@ -68,6 +69,11 @@ void usage() {
       "         timings (redetect: Detector::detect with the target's pose as the prior);\n"
       "         one warm-up, then that operation on each frame, 1 thread, inside profiledRegion()\n"
       "         for valgrind --tool=callgrind --toggle-collect=profiledRegion (instruction counts).\n"
+      "       bench_sift --equivalence: no timings; the fast SIFT against cv::SIFT on the same images\n"
+      "         (the sets of ctest -R SiftFast.Equivalent, eval/sift_equivalence.h): per set the\n"
+      "         keypoints of each (cv, fast), recall and precision (a counterpart within 0.5 px, 5 %%\n"
+      "         in size, 5 deg), counterparts equal to the bit (same), the largest position\n"
+      "         difference (dpos, px), descriptor L2 distances median / 99 %% / max (of ~512).\n"
       "Wall-clock figures: run on an otherwise idle machine. REFGRASP_SIFT_ISA=avx2|scalar lowers\n"
       "the fast extractor's kernels.\n");
 }
@@ -101,6 +107,31 @@ SiftOptions siftFor(SiftImplementation impl, int threads) {
   o.implementation = impl;
   o.threads = threads;
   return o;
+}
+
+void printEquivalenceHeader() {
+  std::printf("| %-32s | %6s | %6s | %7s | %7s | %7s | %5s | %4s | %4s | %5s |\n", "set", "cv", "fast", "recall",
+              "precis.", "same", "dpos", "dmed", "d99", "dmax");
+}
+
+void printEquivalenceRow(const std::string& set, const eval::SiftAgreement& g) {
+  std::printf("| %-32s | %6d | %6d | %6.2f%% | %6.2f%% | %6.2f%% | %5.2g | %4.1f | %4.1f | %5.1f |\n", set.c_str(),
+              g.reference, g.fast, 100 * g.recall(), 100 * g.precision(), 100 * g.identicalFraction(), g.max_pos,
+              g.descQuantile(0.5), g.descQuantile(0.99), g.descQuantile(1.0));
+  for (const std::string& p : g.problems) std::printf("  %s: %s\n", set.c_str(), p.c_str());
+}
+
+/// The equivalence tables: the default options' sets, then the other options (and their total).
+void equivalence() {
+  printEquivalenceHeader();
+  for (const eval::SiftEquivalenceRow& r : eval::siftEquivalenceDefaultOptions()) printEquivalenceRow(r.set, r.agreement);
+  printEquivalenceHeader();
+  eval::SiftAgreement all;
+  for (const eval::SiftEquivalenceRow& r : eval::siftEquivalenceOtherOptions()) {
+    printEquivalenceRow(r.set, r.agreement);
+    all.add(r.agreement);
+  }
+  printEquivalenceRow("other options and sizes (all)", all);
 }
 
 /// Runs fn(frame index) over all frames on `workers` threads, each taking the next frame; returns
@@ -165,7 +196,7 @@ int main(int argc, char** argv) try {
   int frames = 200, threads = 2;
   uint64_t seed = 1;
   std::string texture = "targets/poster_concert.png", only, profile;
-  bool stages_only = false;
+  bool stages_only = false, equivalence_only = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--help" || a == "-h") {
@@ -187,6 +218,8 @@ int main(int argc, char** argv) try {
       }
     } else if (a == "--stages") {
       stages_only = true;
+    } else if (a == "--equivalence") {
+      equivalence_only = true;
     } else if (a == "--only" && i + 1 < argc) {
       only = argv[++i];
       if (only != "fast" && only != "opencv") {
@@ -196,6 +229,10 @@ int main(int argc, char** argv) try {
     } else {
       bench::rejectArgument("bench_sift", a, {"--frames", "--threads", "--seed", "--texture", "--profile", "--only"});
     }
+  }
+  if (equivalence_only) {
+    equivalence();
+    return 0;
   }
   const auto run_start = Clock::now();
   const cv::Mat tex = loadMedia(texture);

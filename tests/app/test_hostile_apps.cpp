@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
+#include <random>
 #include <vector>
 
 #include "common/app_run.h"
@@ -69,7 +70,8 @@ struct BadImage {
   std::string path, problem;
 };
 std::vector<BadImage> badImages() {
-  const std::string png = encodeImage(".png", noiseImage(64, 48)), jpg = encodeImage(".jpg", noiseImage(64, 48));
+  std::mt19937_64 rng(72);
+  const std::string png = encodeImage(".png", noiseImage(rng, 64, 48)), jpg = encodeImage(".jpg", noiseImage(rng, 64, 48));
   const std::string fifo = fifoPath();
   fs::create_directories(dir() / "folder.png");
   return {

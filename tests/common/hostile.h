@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "common/app_run.h"
+#include "common/noise_image.h"
 #include "core/error.h"
 
 namespace refgrasp::testing {
@@ -31,15 +32,10 @@ inline std::string encodeImage(const std::string& ext, const cv::Mat& img) {
   return std::string(buf.begin(), buf.end());
 }
 
-inline cv::Mat noiseImage(int w, int h) {
-  cv::Mat m(h, w, CV_8UC1);
-  cv::randu(m, 0, 255);
-  return m;
-}
-
 /// A small PNG whose IHDR declares w x h pixels (a decompression "bomb" in its header).
 inline std::string pngDeclaring(uint32_t w, uint32_t h) {
-  std::string png = encodeImage(".png", noiseImage(16, 16));
+  std::mt19937_64 rng(16);
+  std::string png = encodeImage(".png", noiseImage(rng, 16, 16));
   for (int i = 0; i < 4; ++i) {
     png[16 + i] = static_cast<char>(w >> (24 - 8 * i));
     png[20 + i] = static_cast<char>(h >> (24 - 8 * i));

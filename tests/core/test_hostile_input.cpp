@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
+#include <random>
 
 #include "common/hostile.h"
 #include "common/temp_dir.h"
@@ -197,7 +198,8 @@ TEST(ImageInput, ABombIsRefusedFromItsHeaderBeforeDecoding) {
   EXPECT_EQ(r.error, bomb + ": PNG declares 20000x20000 pixels, more than the limit of 33554432 pixels "
                             "(REFGRASP_MAX_IMAGE_PIXELS)");
   // The limit is configurable, per call and by the environment.
-  const std::string small = write("small.png", encodeImage(".png", refgrasp::testing::noiseImage(20, 10)));
+  std::mt19937_64 rng(199);
+  const std::string small = write("small.png", encodeImage(".png", refgrasp::testing::noiseImage(rng, 20, 10)));
   EXPECT_TRUE(readImage(small, ImageMode::kGray, {200}).ok());
   EXPECT_NE(readImage(small, ImageMode::kGray, {199}).error.find("20x10 pixels, more than the limit of 199"),
             std::string::npos);
@@ -209,7 +211,8 @@ TEST(ImageInput, ABombIsRefusedFromItsHeaderBeforeDecoding) {
 }
 
 TEST(ImageInput, EveryFormatsHeaderGivesItsSize) {
-  const cv::Mat img = refgrasp::testing::noiseImage(37, 23);
+  std::mt19937_64 rng(211);
+  const cv::Mat img = refgrasp::testing::noiseImage(rng, 37, 23);
   cv::Mat bgr;
   cv::merge(std::vector<cv::Mat>{img, img, img}, bgr);
   for (const char* ext : {".png", ".jpg", ".bmp", ".pgm", ".ppm", ".tif", ".webp"}) {
@@ -230,8 +233,9 @@ TEST(ImageInput, EveryFormatsHeaderGivesItsSize) {
 }
 
 TEST(ImageInput, TruncatedAndCorruptImagesSayWhatAndDecodersStayQuiet) {
-  const std::string png = encodeImage(".png", refgrasp::testing::noiseImage(64, 48));
-  const std::string jpg = encodeImage(".jpg", refgrasp::testing::noiseImage(64, 48));
+  std::mt19937_64 rng(232);
+  const std::string png = encodeImage(".png", refgrasp::testing::noiseImage(rng, 64, 48));
+  const std::string jpg = encodeImage(".jpg", refgrasp::testing::noiseImage(rng, 64, 48));
   ::testing::internal::CaptureStderr();
   const ImageRead tp = decodeImage("t.png", png.substr(0, png.size() / 2), ImageMode::kGray);
   const ImageRead tj = decodeImage("t.jpg", jpg.substr(0, jpg.size() / 2), ImageMode::kGray);

@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <opencv2/imgproc.hpp>
 
+#include "common/format.h"
 #include "robot/sim/synthetic_scene.h"
 #include "detector/dense.h"
 #include "detector/homography.h"
@@ -84,8 +85,8 @@ TEST(DenseRefine, RecoversPerturbedHomography) {
     const DenseRefineResult r = refineHomographyDense(pyr, s.image, H0, rect, opt);
     ASSERT_TRUE(r.ok) << "case " << k;
     const double e0 = cornerError(H0, rect, s.corners), e1 = cornerError(r.H, rect, s.corners);
-    std::printf("case %zu: level %d, corr %.3f, corner error %.3f -> %.3f px\n", k, r.level,
-                r.correlation, e0, e1);
+    SCOPED_TRACE(formatted("case %zu: level %d, corr %.3f, corner error %.3f -> %.3f px", k, r.level,
+                           r.correlation, e0, e1));
     // The near, strongly blurred case is limited by the template budget (level 2, ~3x coarser
     // than the scene): 0.15 px measured.
     EXPECT_LT(e1, k == 3 ? 0.2 : 0.1) << "case " << k;
@@ -131,8 +132,8 @@ TEST(DenseRefine, ANormalisedRetryAlignsAReferencePhotographedUnderOtherLight) {
     const DenseRefineResult b = refineHomographyDense(pyr, s.image, H0, rect, without);
     const double e0 = cornerError(H0, rect, s.corners);
     const double ea = cornerError(a.H, rect, s.corners), eb = cornerError(b.H, rect, s.corners);
-    std::printf("case %zu: start %.2f px; with the retry ok %d corr %.3f error %.3f px; raw only ok %d corr %.3f error %.3f px\n",
-                k, e0, a.ok, a.correlation, ea, b.ok, b.correlation, eb);
+    SCOPED_TRACE(formatted("case %zu: start %.2f px; with the retry ok %d corr %.3f error %.3f px; raw only ok %d "
+                           "corr %.3f error %.3f px", k, e0, a.ok, a.correlation, ea, b.ok, b.correlation, eb));
     recovered_with += a.ok && ea < 0.5;
     recovered_without += b.ok && eb < 0.5;
     EXPECT_TRUE(a.ok) << "case " << k;

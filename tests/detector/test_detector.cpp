@@ -6,12 +6,13 @@
 #include <cmath>
 #include <cstdio>
 #include <opencv2/imgproc.hpp>
-#include <random>
+#include <string>
 
+#include "common/format.h"
 #include "robot/sim/synthetic_scene.h"
 #include "detector/detector.h"
-#include "detector/detector_internal.h"
 #include "detector/homography.h"
+#include "eval/detector_accuracy.h"
 
 using namespace refgrasp;
 using namespace refgrasp::detector;
@@ -27,50 +28,6 @@ const char* kTexture2 = "targets/cereal_box.png";
 
 double heightOf(const cv::Mat& tex, double width) { return width * tex.rows / tex.cols; }
 
-struct Stats {
-  std::vector<double> rot_deg, rel_t;
-  int n = 0, ok = 0;
-  void add(const std::optional<Pose>& est, const Pose& truth) {
-    ++n;
-    if (!est) return;
-    const double r = rotationError(*est, truth) / kDeg;
-    const double t = translationError(*est, truth) / truth.t.norm();
-    rot_deg.push_back(r);
-    rel_t.push_back(t);
-    if (r < 1.0 && t < 0.01) ++ok;
-  }
-  static double pct(std::vector<double> v, double q) {
-    if (v.empty()) return NAN;
-    std::sort(v.begin(), v.end());
-    return v[std::min(v.size() - 1, static_cast<size_t>(q * (v.size() - 1) + 0.5))];
-  }
-  double rate() const { return n ? static_cast<double>(ok) / n : 0; }
-  void print(const char* name) const {
-    std::printf("| %-8s | %5.1f%% (%d/%d) | %6.3f | %6.3f | %6.3f | %7.4f | %7.4f | %7.4f |\n", name,
-                100 * rate(), ok, n, pct(rot_deg, 0.5), pct(rot_deg, 0.95), pct(rot_deg, 1.0),
-                pct(rel_t, 0.5), pct(rel_t, 0.95), pct(rel_t, 1.0));
-  }
-};
-
-double stddev(const std::vector<double>& v) {
-  double m = 0, s = 0;
-  for (double x : v) m += x;
-  m /= v.size();
-  for (double x : v) s += (x - m) * (x - m);
-  return std::sqrt(s / (v.size() - 1));
-}
-
-// Position jitter: sqrt of the summed per-axis variances, metres.
-double positionJitter(const std::vector<Pose>& poses) {
-  double s2 = 0;
-  for (int k = 0; k < 3; ++k) {
-    std::vector<double> v;
-    for (const auto& p : poses) v.push_back(p.t[k]);
-    s2 += std::pow(stddev(v), 2);
-  }
-  return std::sqrt(s2);
-}
-
 double cornerError(const std::array<Eigen::Vector2d, 4>& a, const std::array<Eigen::Vector2d, 4>& b) {
   double e = 0;
   for (int i = 0; i < 4; ++i) e = std::max(e, (a[i] - b[i]).norm());
@@ -79,133 +36,56 @@ double cornerError(const std::array<Eigen::Vector2d, 4>& a, const std::array<Eig
 
 }  // namespace
 
+// The runs (eval/detector_accuracy.h) and their tables: build/bench/bench_accuracy.
 TEST(Detector, PoseAccuracyBothMethods) {
-  const cv::Mat tex = loadMedia(kTexture);
-  const Intrinsics cam = sceneCamera();
-  Detector det;
-  const int id = det.addObject(textureObject("poster", tex, kWidth));
-  std::mt19937_64 rng(2024);
-  std::uniform_real_distribution<double> blur(0.0, 1.5), angle(0, M_PI);
-  Stats paper, refined, facade;
-  const int kPoses = 48;
-  for (int i = 0; i < kPoses; ++i) {
-    SceneSpec spec;
-    spec.cMo = randomVisiblePose(rng, cam, kWidth, heightOf(tex, kWidth), 0.3, 1.2, 50 * kDeg);
-    spec.motion_blur_px = blur(rng);
-    spec.motion_blur_angle_rad = angle(rng);
-    spec.seed = 1000 + i;
-    const RenderedScene s = renderTarget(cam, tex, kWidth, heightOf(tex, kWidth), spec);
-    // Both methods on the same matches.
-    const Features f = DetectorInternals::extract(det, s.image, cam);
-    const GridIndex grid(f.keypoints, f.image_size);
-    const MatchResult m =
-        matchObject(DetectorInternals::referenceIndex(det, id), f, grid, det.options().match);
-    std::optional<Pose> p_paper, p_refined;
-    if (!m.instances.empty()) {
-      const PoseResult a =
-          DetectorInternals::estimatePose(det, id, m.instances[0], f, cam, PoseMethod::kPaper);
-      const PoseResult b =
-          DetectorInternals::estimatePose(det, id, m.instances[0], f, cam, PoseMethod::kRefined);
-      if (a.ok) p_paper = a.cMo;
-      if (b.ok) p_refined = b.cMo;
+  const eval::PoseAccuracy a = eval::poseAccuracy(48);
+  std::string outside;  // the refined poses outside 1 deg / 1 %, for the message of a failure
+  for (size_t i = 0; i < a.frames.size(); ++i) {
+    const eval::PoseAccuracyFrame& f = a.frames[i];
+    if (f.detected_corner_px) {
+      EXPECT_LT(*f.detected_corner_px, 3.0) << "pose " << i;
     }
-    if (p_refined && (rotationError(*p_refined, s.cMo) > kDeg ||
-                      translationError(*p_refined, s.cMo) > 0.01 * s.cMo.t.norm()))
-      std::printf("  outside 1 deg / 1%%: pose %d at %.2f m, tilt %.1f deg, %zu inliers: refined "
-                  "%.2f deg %.2f%%, paper %.2f deg %.2f%%\n",
-                  i, s.cMo.t.norm(), std::acos(std::abs(s.cMo.R(2, 2))) / kDeg,
-                  m.instances[0].inliers.size(), rotationError(*p_refined, s.cMo) / kDeg,
-                  100 * translationError(*p_refined, s.cMo) / s.cMo.t.norm(),
-                  p_paper ? rotationError(*p_paper, s.cMo) / kDeg : NAN,
-                  p_paper ? 100 * translationError(*p_paper, s.cMo) / s.cMo.t.norm() : NAN);
-    paper.add(p_paper, s.cMo);
-    refined.add(p_refined, s.cMo);
-    // The facade (default method, sanity check) on the same frame.
-    const DetectionResult r = det.detect(s.image, cam);
-    const std::optional<Detection> d = r.find(id);
-    facade.add(d ? d->cMo : std::nullopt, s.cMo);
-    if (d) {
-      EXPECT_LT(cornerError(d->corners, s.corners), 3.0) << "pose " << i;
+    if (f.refined && (rotationError(*f.refined, f.truth) > kDeg ||
+                      translationError(*f.refined, f.truth) > 0.01 * f.truth.t.norm())) {
+      outside += formatted("\n  pose %zu at %.2f m, tilt %.1f deg, %d inliers: refined %.2f deg %.2f%%", i,
+                           f.truth.t.norm(), f.tilt_deg, f.inliers, rotationError(*f.refined, f.truth) / kDeg,
+                           100 * translationError(*f.refined, f.truth) / f.truth.t.norm());
     }
   }
-  std::printf("Pose accuracy, %d random poses (0.3-1.2 m, tilt 0-50 deg, noise 2, blur 0-1.5 px)\n"
-              "| method   | ok (<1deg,<1%%) | rot med | rot 95%% | rot max | t/d med | t/d 95%% | t/d max |\n",
-              kPoses);
-  paper.print("paper");
-  refined.print("refined");
-  facade.print("detect()");
   const PoseMethod def = DetectorOptions{}.pose;
-  const Stats& best = def == PoseMethod::kPaper ? paper : refined;
-  const Stats& other = def == PoseMethod::kPaper ? refined : paper;
-  std::printf("default: %s\n", poseMethodName(def));
-  EXPECT_GE(best.rate(), 0.95);
-  EXPECT_GE(facade.rate(), 0.95);
+  const eval::PoseErrors& best = def == PoseMethod::kPaper ? a.paper : a.refined;
+  const eval::PoseErrors& other = def == PoseMethod::kPaper ? a.refined : a.paper;
+  EXPECT_GE(best.rate(), 0.95) << poseMethodName(def) << outside;
+  EXPECT_GE(a.detected.rate(), 0.95);
   // The default is the more accurate method: success rate, then median rotation error.
   EXPECT_GE(best.rate(), other.rate());
-  EXPECT_LE(Stats::pct(best.rot_deg, 0.5), Stats::pct(other.rot_deg, 0.5));
+  EXPECT_LE(eval::quantile(best.rot_deg, 0.5), eval::quantile(other.rot_deg, 0.5));
 }
 
 TEST(Detector, JitterAtHalfMetre) {
-  const cv::Mat tex = loadMedia(kTexture);
-  const Intrinsics cam = sceneCamera();
-  Detector det;
-  det.addObject(textureObject("poster", tex, kWidth));
-  const Pose truth = Pose::fromRotationVector({0.25, -0.15, 0.1}, {0.02, -0.01, 0.5});
   std::vector<double> z;
-  for (int i = 0; i < 50; ++i) {
-    SceneSpec spec;
-    spec.cMo = truth;
-    spec.noise_sigma = 2.0;
-    spec.seed = 77 + i;
-    const RenderedScene s = renderTarget(cam, tex, kWidth, heightOf(tex, kWidth), spec);
-    const DetectionResult r = det.detect(s.image, cam);
-    const std::optional<Detection> d = r.find(0);
-    ASSERT_TRUE(d && d->cMo) << "frame " << i;
-    z.push_back(d->cMo->t.z());
+  const std::vector<std::optional<double>> depths = eval::jitterDepths(50);
+  for (size_t i = 0; i < depths.size(); ++i) {
+    ASSERT_TRUE(depths[i]) << "frame " << i;
+    z.push_back(*depths[i]);
   }
-  const double sz = stddev(z);
-  std::printf("Jitter: 50 noisy renders at 0.5 m, std(Z) = %.3f mm\n", sz * 1e3);
-  EXPECT_LE(sz, 1e-3);
+  EXPECT_LE(eval::sampleStd(z), 1e-3);
 }
 
 TEST(Detector, StereoFusionReducesJitter) {
-  const cv::Mat tex = loadMedia(kTexture);
-  StereoRig rig;
-  rig.left = rig.right = sceneCamera();
-  rig.lMr = Pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0.12, 0, 0));
-  Detector det;
-  det.addObject(textureObject("poster", tex, kWidth));
-  const Pose lMo = Pose::fromRotationVector({0.3, 0.2, -0.1}, {0.06, 0.01, 0.8});
-  const Pose rMo = rig.lMr.inverse() * lMo;
-  std::vector<Pose> left, right, fused;
-  int both = 0;
-  for (int i = 0; i < 30; ++i) {
-    SceneSpec sl, sr;
-    sl.cMo = lMo;
-    sr.cMo = rMo;
-    sl.seed = 500 + 2 * i;
-    sr.seed = 501 + 2 * i;
-    const cv::Mat L = renderTarget(rig.left, tex, kWidth, heightOf(tex, kWidth), sl).image;
-    const cv::Mat R = renderTarget(rig.right, tex, kWidth, heightOf(tex, kWidth), sr).image;
-    const StereoDetectionResult r = det.detectStereo(L, R, rig);
-    ASSERT_TRUE(r.ok) << r.error;
-    ASSERT_EQ(r.objects.size(), 1u);
-    const StereoDetection& s = r.objects[0];
-    ASSERT_TRUE(s.fused.lMo.has_value());
-    if (s.fused.eyes != EyesUsed::kBoth) continue;
-    ++both;
-    left.push_back(*s.left.cMo);
-    right.push_back(rig.lMr * *s.right.cMo);
-    fused.push_back(*s.fused.lMo);
-    EXPECT_LT(rotationError(*s.fused.lMo, lMo), 1.0 * kDeg);
-    EXPECT_LT(translationError(*s.fused.lMo, lMo), 0.01 * lMo.t.norm());
+  const eval::StereoJitter s = eval::stereoJitter(30);
+  const Pose& lMo = s.lMo_truth;
+  for (const eval::StereoJitterFrame& f : s.frames) {
+    ASSERT_TRUE(f.ok) << f.error;
+    ASSERT_EQ(f.objects, 1u);
+    ASSERT_TRUE(f.fused);
+    if (!f.both) continue;
+    EXPECT_LT(rotationError(*f.lMo, lMo), 1.0 * kDeg);
+    EXPECT_LT(translationError(*f.lMo, lMo), 0.01 * lMo.t.norm());
   }
-  ASSERT_GE(both, 28);
-  const double jl = positionJitter(left), jr = positionJitter(right), jf = positionJitter(fused);
-  std::printf("Stereo jitter at 0.8 m over %d frames (position std, mm): left %.3f, right %.3f, "
-              "fused %.3f (%.0f%% of the better eye)\n",
-              both, jl * 1e3, jr * 1e3, jf * 1e3, 100 * jf / std::min(jl, jr));
-  EXPECT_LE(jf, std::min(jl, jr));
+  const eval::StereoJitter::Summary j = s.summary();
+  ASSERT_GE(j.both, 28);
+  EXPECT_LE(j.fused_m, std::min(j.left_m, j.right_m));
 }
 
 TEST(Detector, TwoObjectsShareOneExtraction) {

@@ -1,46 +1,18 @@
 // False positives: the default detector, every shipped target object registered at once, over
-// hundreds of seeded clutter frames that do not contain any of them -> zero detections.
+// hundreds of seeded clutter frames that do not contain any of them -> zero detections. The run:
+// eval::falsePositivesOnClutter (eval/detector_accuracy.h); its figures: build/bench/bench_accuracy.
 #include <gtest/gtest.h>
 
-#include <cstdio>
+#include <string>
 
-#include "robot/sim/synthetic_scene.h"
-#include "detector/detector.h"
+#include "eval/detector_accuracy.h"
 
 using namespace refgrasp;
-using namespace refgrasp::detector;
-using namespace refgrasp::testing;
 
 TEST(FalsePositives, NoDetectionOnClutterWithoutTheTargets) {
-  const std::vector<std::string>& targets = targetTextures();
-  Detector det;
-  for (const auto& t : targets) det.addObject(textureObject(t, loadMedia(t), 0.2));
-  const Intrinsics cam = sceneCamera();
-  const int kFrames = 500;
-  int detections = 0, candidates_rejected_by_sanity = 0;
-  double total_ms = 0;
-  for (int i = 0; i < kFrames; ++i) {
-    cv::Mat img = clutterBackground(100000 + i);
-    cv::Mat noise(img.size(), CV_16S);
-    cv::randn(noise, 0, 2.0);  // sensor noise, as in the rendered target scenes
-    img.convertTo(img, CV_16S);
-    img += noise;
-    img.convertTo(img, CV_8U);
-    const DetectionResult r = det.detect(img, cam);
-    ASSERT_TRUE(r.ok) << r.error;
-    total_ms += r.time_ms.total;
-    for (const Detection& d : r.detections) {
-      if (d.found) {
-        ++detections;
-        ADD_FAILURE() << "frame " << i << ": false detection of " << targets[d.object] << " ("
-                      << d.inliers << " inliers)";
-      } else if (d.sanity != SanityStatus::kOk) {
-        ++candidates_rejected_by_sanity;
-      }
-    }
-  }
-  std::printf("False positives: %d detections over %d clutter frames x %zu objects "
-              "(%d matcher candidates rejected by the sanity check), mean %.1f ms/frame\n",
-              detections, kFrames, targets.size(), candidates_rejected_by_sanity, total_ms / kFrames);
-  EXPECT_EQ(detections, 0);
+  const eval::FalsePositiveRun r = eval::falsePositivesOnClutter(500);
+  ASSERT_EQ(r.objects, 5u);
+  for (const std::string& f : r.failed) ADD_FAILURE() << f;
+  for (const std::string& d : r.false_detections) ADD_FAILURE() << d;
+  EXPECT_EQ(r.detections, 0);
 }

@@ -21,7 +21,8 @@ Eigen::Matrix3d randomHomography(std::mt19937_64& rng) {
   H << s * std::cos(a), -s * std::sin(a), 300 + 50 * u(rng),  //
       s * std::sin(a), s * std::cos(a), 200 + 50 * u(rng),    //
       3e-4 * u(rng), 3e-4 * u(rng), 1;
-  H.block<2, 2>(0, 0) += 0.1 * Eigen::Matrix2d::Random();
+  for (int r = 0; r < 2; ++r)
+    for (int c = 0; c < 2; ++c) H(r, c) += 0.1 * u(rng);  // from the test's generator, not Eigen's Random() (rand)
   return H;
 }
 

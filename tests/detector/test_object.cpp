@@ -1,12 +1,14 @@
 // Object definition files: geometry of a valid definition, and one clear error per bad input.
 #include <gtest/gtest.h>
 
+#include "common/noise_image.h"
 #include "common/temp_dir.h"
 
 #include <filesystem>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
+#include <random>
 
 #include "core/error.h"
 #include "detector/object.h"
@@ -29,9 +31,8 @@ std::string write(const std::string& name, const std::string& text) {
 
 // 400x300 texture and a matching camera: a 0.2 m wide texture seen at 0.5 m (f = 1000).
 void writeFixtures() {
-  cv::Mat img(300, 400, CV_8UC1);
-  cv::randu(img, 0, 255);
-  cv::imwrite((testDir() / "tex.png").string(), img);
+  std::mt19937_64 rng(31);
+  cv::imwrite((testDir() / "tex.png").string(), refgrasp::testing::noiseImage(rng, 400, 300));
   write("cam.yaml", R"(image_width: 400
 image_height: 300
 camera_matrix: {rows: 3, cols: 3, data: [1000, 0, 199.5, 0, 1000, 149.5, 0, 0, 1]}

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <random>
 
+#include "common/format.h"
 #include "detector/homography.h"
 #include "detector/pose.h"
 #include "detector/sanity.h"
@@ -288,8 +289,9 @@ TEST(Pose, RefinedNearAPriorResolvesThePlanarAmbiguity) {
     const PoseResult near_flip = estimatePoseRefinedNear(X, y, t, kSceneK, PoseOptions{}, flipped, 0.5);
     ASSERT_TRUE(near_flip.ok) << z;
     const double flip_deg = rotationError(near_flip.cMo, truth) * 180 / M_PI;
-    std::printf("z %.1f m: near the truth %.2f deg off (rms %.3f px); near the mirror %.1f deg off (rms %.3f px)\n",
-                z, rotationError(near_truth.cMo, truth) * 180 / M_PI, near_truth.rms_px, flip_deg, near_flip.rms_px);
+    SCOPED_TRACE(refgrasp::testing::formatted(
+        "z %.1f m: near the truth %.2f deg off (rms %.3f px); near the mirror %.1f deg off (rms %.3f px)", z,
+        rotationError(near_truth.cMo, truth) * 180 / M_PI, near_truth.rms_px, flip_deg, near_flip.rms_px));
     if (z > 1) {
       EXPECT_GT(flip_deg, 30.0) << "far: the prior picks the mirror solution";
       EXPECT_LT(near_flip.rms_px, near_truth.rms_px + 0.5);

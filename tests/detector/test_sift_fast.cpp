@@ -16,13 +16,14 @@
 #include "detector/detector.h"
 #include "detector/features.h"
 #include "detector/sift_fast.h"
+#include "eval/sift_equivalence.h"
 
 namespace refgrasp::detector {
 namespace {
 
-// Equivalence bars (the issue's: >= 97 % of cv::SIFT's keypoints within 0.5 px, 5 %, 5 degrees).
+// Equivalence bars (the issue's: >= 97 % of cv::SIFT's keypoints within 0.5 px, 5 %, 5 degrees;
+// the counterparts: eval::siftCounterparts).
 constexpr double kMinRecall = 0.97, kMinPrecision = 0.97;
-constexpr double kPosPx = 0.5, kSizeFrac = 0.05, kAngleDeg = 5;
 // Descriptors are integer vectors of L2 norm ~512. Matched pairs: the median distance is 0 and
 // 99 % are within 2 (an entry off by one from float rounding); none beyond 30.
 constexpr double kDescMedian = 0.0, kDescP99 = 2.0, kDescMax = 30.0;
@@ -30,106 +31,10 @@ constexpr double kDescMedian = 0.0, kDescP99 = 2.0, kDescMax = 30.0;
 // positions within rounding (OpenCV's compiled code contracts some of them into FMAs).
 constexpr double kMaxPosDiffPx = 0.01;
 
-struct Agreement {
-  int reference = 0, fast = 0;  ///< keypoint counts
-  int recalled = 0;             ///< reference keypoints with a fast counterpart
-  int precise = 0;              ///< fast keypoints with a reference counterpart
-  int identical = 0;            ///< counterparts equal in position, size, angle, response (float ==)
-  std::vector<double> desc;     ///< descriptor L2 distance of each recalled keypoint
-  double max_pos = 0;
-  void add(const Agreement& o) {
-    reference += o.reference;
-    fast += o.fast;
-    recalled += o.recalled;
-    precise += o.precise;
-    identical += o.identical;
-    desc.insert(desc.end(), o.desc.begin(), o.desc.end());
-    max_pos = std::max(max_pos, o.max_pos);
-  }
-  double recall() const { return reference ? static_cast<double>(recalled) / reference : 1; }
-  double precision() const { return fast ? static_cast<double>(precise) / fast : 1; }
-  double descQuantile(double q) const {
-    if (desc.empty()) return 0;
-    std::vector<double> d = desc;
-    std::sort(d.begin(), d.end());
-    return d[std::min(d.size() - 1, static_cast<size_t>(q * (d.size() - 1) + 0.5))];
-  }
-};
-
-double angleDiff(float a, float b) {
-  const double d = std::abs(a - b);
-  return std::min(d, 360 - d);
-}
-
-/// The counterpart of each keypoint of `a` in `b` (-1 when none): nearest in position among the
-/// keypoints within the bars.
-std::vector<int> counterparts(const Features& a, const Features& b) {
-  std::vector<int> idx(b.size());
-  for (int j = 0; j < b.size(); ++j) idx[j] = j;
-  std::sort(idx.begin(), idx.end(), [&](int p, int q) { return b.keypoints[p].pt.x < b.keypoints[q].pt.x; });
-  std::vector<int> out(a.size(), -1);
-  for (int i = 0; i < a.size(); ++i) {
-    const cv::KeyPoint& ka = a.keypoints[i];
-    auto lo = std::lower_bound(idx.begin(), idx.end(), ka.pt.x - kPosPx,
-                               [&](int j, float x) { return b.keypoints[j].pt.x < x; });
-    double best = 1e9;
-    for (auto it = lo; it != idx.end() && b.keypoints[*it].pt.x <= ka.pt.x + kPosPx; ++it) {
-      const cv::KeyPoint& kb = b.keypoints[*it];
-      const double d = cv::norm(ka.pt - kb.pt);
-      if (d > kPosPx || std::abs(kb.size - ka.size) > kSizeFrac * ka.size ||
-          angleDiff(ka.angle, kb.angle) > kAngleDeg)
-        continue;
-      const double score = d + 0.01 * angleDiff(ka.angle, kb.angle);
-      if (score < best) {
-        best = score;
-        out[i] = *it;
-      }
-    }
-  }
-  return out;
-}
-
-Agreement compare(const cv::Mat& img, SiftOptions opt) {
-  opt.implementation = SiftImplementation::kOpenCV;
-  const Features ref = extractSift(img, opt);
-  opt.implementation = SiftImplementation::kFast;
-  const Features fast = extractSift(img, opt);
-  EXPECT_EQ(fast.descriptors.type(), CV_32F);
-  EXPECT_EQ(fast.descriptors.rows, fast.size());
-  Agreement g;
-  g.reference = ref.size();
-  g.fast = fast.size();
-  const std::vector<int> rf = counterparts(ref, fast), fr = counterparts(fast, ref);
-  for (int i = 0; i < ref.size(); ++i) {
-    if (rf[i] < 0) continue;
-    ++g.recalled;
-    const cv::KeyPoint &a = ref.keypoints[i], &b = fast.keypoints[rf[i]];
-    g.max_pos = std::max(g.max_pos, static_cast<double>(cv::norm(a.pt - b.pt)));
-    if (a.pt == b.pt && a.size == b.size && a.angle == b.angle && a.response == b.response) ++g.identical;
-    g.desc.push_back(cv::norm(ref.descriptors.row(i), fast.descriptors.row(rf[i]), cv::NORM_L2));
-  }
-  for (int j = 0; j < fast.size(); ++j) g.precise += fr[j] >= 0;
-  // The matcher relies on integer descriptors in 0..255.
-  for (int r = 0; r < fast.descriptors.rows; ++r)
-    for (int c = 0; c < 128; ++c) {
-      const float v = fast.descriptors.at<float>(r, c);
-      if (!(v >= 0 && v <= 255 && v == std::floor(v))) {
-        ADD_FAILURE() << "descriptor " << r << "," << c << " = " << v;
-        return g;
-      }
-    }
-  return g;
-}
-
-void report(const char* set, const Agreement& g) {
-  std::printf("| %-32s | %6d | %6d | %6.2f%% | %6.2f%% | %6.2f%% | %5.2g | %4.1f | %4.1f | %5.1f |\n", set,
-              g.reference, g.fast, 100 * g.recall(), 100 * g.precision(),
-              g.recalled ? 100.0 * g.identical / g.recalled : 0.0, g.max_pos, g.descQuantile(0.5),
-              g.descQuantile(0.99), g.descQuantile(1.0));
-}
-
-void expectEquivalent(const char* set, const Agreement& g) {
-  report(set, g);
+void expectEquivalent(const eval::SiftEquivalenceRow& row) {
+  const eval::SiftAgreement& g = row.agreement;
+  const char* set = row.set.c_str();
+  for (const std::string& p : g.problems) ADD_FAILURE() << set << ": " << p;
   EXPECT_GE(g.recall(), kMinRecall) << set;
   EXPECT_GE(g.precision(), kMinPrecision) << set;
   EXPECT_LE(g.descQuantile(0.5), kDescMedian) << set;
@@ -138,98 +43,19 @@ void expectEquivalent(const char* set, const Agreement& g) {
   EXPECT_LE(g.max_pos, kMaxPosDiffPx) << set;
 }
 
-void printHeader() {
-  std::printf("| %-32s | %6s | %6s | %7s | %7s | %7s | %5s | %4s | %4s | %5s |\n", "set", "cv", "fast",
-              "recall", "precis.", "same", "dpos", "dmed", "d99", "dmax");
-}
-
-const std::vector<std::string>& photos() {
-  static const std::vector<std::string> p = {"photos/cookie_box.png",        "photos/cookie_box_in_scene.png",
-                                             "photos/fruits_closeup.jpg",    "photos/hotel_facade.jpg",
-                                             "photos/butterfly_on_leaf.jpg", "photos/aerial_town.jpg"};
-  return p;
-}
-
 }  // namespace
 
+// The sets and their table: eval/sift_equivalence.h, build/bench/bench_sift --equivalence.
 TEST(SiftFast, EquivalentToOpenCvOnRenderedScenesTexturesAndPhotos) {
-  printHeader();
-  // Rendered 640x480 scenes: each target at 4 seeded poses (0.3-1.2 m, tilt <= 50 deg), clutter,
-  // noise 2, motion blur up to 1.5 px, as in the detector tests.
-  const Intrinsics cam = testing::sceneCamera();
-  std::mt19937_64 rng(12);
-  std::uniform_real_distribution<double> blur(0.0, 1.5), angle(0, M_PI);
-  Agreement scenes;
-  int k = 0;
-  for (const std::string& t : testing::targetTextures()) {
-    const cv::Mat tex = testing::loadMedia(t);
-    for (int i = 0; i < 4; ++i, ++k) {
-      testing::SceneSpec spec;
-      spec.cMo = testing::randomVisiblePose(rng, cam, 0.2, 0.2 * tex.rows / tex.cols, 0.3, 1.2, 50 * M_PI / 180);
-      spec.motion_blur_px = blur(rng);
-      spec.motion_blur_angle_rad = angle(rng);
-      spec.seed = 700 + k;
-      scenes.add(compare(testing::renderTarget(cam, tex, 0.2, 0.2 * tex.rows / tex.cols, spec).image, {}));
-    }
-  }
-  expectEquivalent("rendered scenes (20)", scenes);
-  Agreement clutter;
-  for (int i = 0; i < 4; ++i) clutter.add(compare(testing::clutterBackground(900 + i), {}));
-  expectEquivalent("clutter only (4)", clutter);
-  Agreement textures;
-  for (const std::string& t : testing::targetTextures()) textures.add(compare(testing::loadMedia(t), {}));
-  for (const char* t : {"hard/tiled_motif.png", "hard/symmetric.png", "hard/low_texture.png",
-                        "boxes/box_side_a.png", "backgrounds/wall.png"})
-    textures.add(compare(testing::loadMedia(t), {}));
-  expectEquivalent("textures (10)", textures);
-  Agreement all_photos;
-  for (const std::string& p : photos()) {
-    const Agreement g = compare(testing::loadMedia(p), {});
-    expectEquivalent(p.c_str(), g);
-    all_photos.add(g);
-  }
-  expectEquivalent("photos (6)", all_photos);
+  const std::vector<eval::SiftEquivalenceRow> rows = eval::siftEquivalenceDefaultOptions();
+  ASSERT_EQ(rows.size(), 10u);  // scenes, clutter, textures, 6 photos, the photos together
+  for (const eval::SiftEquivalenceRow& row : rows) expectEquivalent(row);
 }
 
 TEST(SiftFast, EquivalentForOtherOptionsAndSizes) {
-  printHeader();
-  const cv::Mat photo = testing::loadMedia("photos/cookie_box_in_scene.png");
-  const cv::Mat scene = testing::clutterBackground(77);
-  struct Variant {
-    const char* name;
-    SiftOptions opt;
-  };
-  std::vector<Variant> variants;
-  auto add = [&](const char* name, auto edit) {
-    SiftOptions o;
-    edit(o);
-    variants.push_back({name, o});
-  };
-  add("no up-sampling", [](SiftOptions& o) { o.upsample = false; });
-  add("octave_layers 2", [](SiftOptions& o) { o.octave_layers = 2; });
-  add("octave_layers 5", [](SiftOptions& o) { o.octave_layers = 5; });
-  add("sigma 1.2", [](SiftOptions& o) { o.sigma = 1.2; });
-  add("sigma 2.0", [](SiftOptions& o) { o.sigma = 2.0; });
-  add("contrast 0.02", [](SiftOptions& o) { o.contrast_threshold = 0.02; });
-  add("contrast 0.08, edge 5", [](SiftOptions& o) {
-    o.contrast_threshold = 0.08;
-    o.edge_threshold = 5;
-  });
-  add("max_features 300", [](SiftOptions& o) { o.max_features = 300; });
-  for (const Variant& v : variants) {
-    Agreement g = compare(photo, v.opt);
-    g.add(compare(scene, v.opt));
-    expectEquivalent(v.name, g);
-  }
-  // Odd and small sizes, a colour image.
-  Agreement sizes;
-  for (const cv::Rect r : {cv::Rect(3, 5, 333, 211), cv::Rect(100, 50, 97, 61), cv::Rect(0, 0, 41, 29),
-                           cv::Rect(17, 0, 160, 480)})
-    sizes.add(compare(scene(r).clone(), {}));
-  cv::Mat colour;
-  cv::cvtColor(scene, colour, cv::COLOR_GRAY2BGR);
-  sizes.add(compare(colour, {}));
-  expectEquivalent("odd sizes, colour (5)", sizes);
+  const std::vector<eval::SiftEquivalenceRow> rows = eval::siftEquivalenceOtherOptions();
+  ASSERT_EQ(rows.size(), 9u);  // 8 option sets, odd sizes and colour
+  for (const eval::SiftEquivalenceRow& row : rows) expectEquivalent(row);
 }
 
 TEST(SiftFast, MaxFeaturesKeepsTheSameStrongest) {
@@ -396,7 +222,7 @@ TEST(SiftFast, RegionOfInterestAgreesWithOpenCv) {
   o.implementation = SiftImplementation::kFast;
   const Features fast = extractSift(img, o, region);
   ASSERT_GT(ref.size(), 100);
-  const std::vector<int> rf = counterparts(ref, fast), fr = counterparts(fast, ref);
+  const std::vector<int> rf = eval::siftCounterparts(ref, fast), fr = eval::siftCounterparts(fast, ref);
   EXPECT_GE(std::count_if(rf.begin(), rf.end(), [](int j) { return j >= 0; }), ref.size() * 97 / 100);
   EXPECT_GE(std::count_if(fr.begin(), fr.end(), [](int j) { return j >= 0; }), fast.size() * 97 / 100);
 }

@@ -8,6 +8,7 @@
 #include <memory>
 #include <stdexcept>
 
+#include "common/format.h"
 #include "grasp_run.h"
 #include "robot/hal.h"
 #include "servo/vision_estimator.h"
@@ -375,8 +376,9 @@ TEST(GraspController, AnUnreachableEstimateEndsTheRunOnlyWhenItPersists) {
     };
     servo::GraspOptions o;
     const GraspRun r = runGrasp(target, est, o, 60, false, hook);
-    std::printf("%s: %d steps waiting for a reachable estimate, outcome %s\n", for_good ? "tilted for good" : "tilted 0.5 s",
-                waiting, r.report.success ? "grasped" : r.report.failure.c_str());
+    SCOPED_TRACE(refgrasp::testing::formatted("%s: %d steps waiting for a reachable estimate, outcome %s",
+                                              for_good ? "tilted for good" : "tilted 0.5 s", waiting,
+                                              r.report.success ? "grasped" : r.report.failure.c_str()));
     ASSERT_GT(approach_at, 0);
     EXPECT_GT(waiting, 5);
     EXPECT_EQ(moving_while_waiting, 0);

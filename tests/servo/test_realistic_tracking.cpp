@@ -107,6 +107,9 @@ TEST(RealisticTracking, APoseOnNearlyEveryFrameWhereDetectionFindsAboutHalf) {
   // ambiguity a single frame cannot resolve, which is why the robot's pipeline confirms and then
   // tracks). The far half of the path (beyond ~2.5 m, up to 60 deg) stays out of single-frame
   // reach. The figures: docs/results.md "Tracking on realistic data".
+  // The upper bound is no regression check: it keeps the sequence beyond single-frame detection,
+  // without which the tracking figures below would show nothing. A detector that passes it
+  // calls for a harder path, not a looser bound.
   EXPECT_LE(good_b, 84);
   EXPECT_GE(good_b, 48);
   EXPECT_GE(good_b, poses_b - 8);

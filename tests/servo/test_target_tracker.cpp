@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cstdio>
 
+#include "common/format.h"
 #include "detector/detector.h"
 #include "robot/sim/synthetic_scene.h"
 #include "robot/sim/synthetic_sequence.h"
@@ -228,13 +229,14 @@ TEST(PlanarTracker, LosesTheTargetWhenItLeavesTheViewOrIsHidden) {
     ASSERT_GE(seq.visible[0], 0.99);
     std::optional<Pose> last = seq.truth[0], before;
     size_t lost_at = 0;
+    std::string lost;  // how it was lost, for the messages below
     for (size_t k = 1; k < seq.mono.size(); ++k) {
       const Pose predicted = before ? *last * before->inverse() * *last : *last;
       const servo::TrackStep s = tracker->track(seq.mono[k].image, seq.camera, predicted);
       if (!s.ok) {
         lost_at = k;
-        std::printf("%s: lost at frame %zu (visible %.2f): %s\n", occluder ? "occluder" : "out of view", k,
-                    seq.visible[k], s.lost_reason.c_str());
+        lost = rt::formatted("%s: lost at frame %zu (visible %.2f): %s", occluder ? "occluder" : "out of view", k,
+                         seq.visible[k], s.lost_reason.c_str());
         break;
       }
       EXPECT_GE(seq.visible[k], 0.3) << k << ": tracked while mostly out of view or hidden";
@@ -244,6 +246,7 @@ TEST(PlanarTracker, LosesTheTargetWhenItLeavesTheViewOrIsHidden) {
       last = s.cMo;
     }
     ASSERT_GT(lost_at, 0u) << "never lost";
+    SCOPED_TRACE(lost);
     // Lost once less than about 60 % of the pattern is in view and unoccluded, not long before.
     EXPECT_LT(seq.visible[lost_at], 0.6);
     EXPECT_GE(seq.visible[lost_at], 0.3);
@@ -259,7 +262,7 @@ TEST(TargetTracker, LeavesAndComesBackAndPassesBehindAPanel) {
     std::vector<servo::TargetFrame> frames;
     for (const auto& f : seq.mono) frames.push_back(pipeline.process(f, seq.camera));
     const std::string modes = modeString(frames);
-    std::printf("%s: %s\n", occluder ? "occluder   " : "out of view", modes.c_str());
+    SCOPED_TRACE(rt::formatted("%s: modes %s", occluder ? "occluder" : "out of view", modes.c_str()));
     int hidden = 0;
     for (size_t k = 0; k < frames.size(); ++k) {
       const servo::TargetState& s = frames[k].objects[0];
@@ -348,7 +351,8 @@ TEST(TargetTracker, ConfirmationRejectsASingleWrongDetection) {
       confirmed += frames.back().objects[0].confirmed ? '1' : '0';
     }
     const std::string modes = modeString(frames);
-    std::printf("%s: modes %s confirmed %s\n", track ? "track   " : "no-track", modes.c_str(), confirmed.c_str());
+    SCOPED_TRACE(
+        rt::formatted("%s: modes %s confirmed %s", track ? "track" : "no-track", modes.c_str(), confirmed.c_str()));
     EXPECT_EQ(modes[3], 'D');
     EXPECT_EQ(confirmed.substr(0, 11), std::string(11, '0'));
     EXPECT_EQ(modes.substr(5, 6), "......") << "the flash's hypothesis is dropped";

@@ -8,8 +8,10 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <random>
 #include <sstream>
 
+#include "common/noise_image.h"
 #include "common/subprocess.h"
 #include "common/temp_dir.h"
 #include "dds_test_util.h"
@@ -207,8 +209,8 @@ TEST_F(Wire, PoseStampedDecodesAsRos) {
 }
 
 TEST_F(Wire, ImageAndCameraInfoDecodeAsRos) {
-  cv::Mat img(48, 64, CV_8UC1);
-  cv::randu(img, 0, 255);
+  std::mt19937_64 rng(211);
+  const cv::Mat img = refgrasp::testing::noiseImage(rng, 64, 48);
   ImageOut out(img, 3.25, "left_optical");
   Writer<msg::Image> w(*pp_, ddsTopicName(ns_ + "/image_raw"), QosProfile::sensorData());
   const json j = echo("rt" + ns_ + "/image_raw", "sensor_msgs::msg::dds_::Image_",
@@ -464,8 +466,8 @@ TEST_F(Wire, ClientMatchesRepliesBySeq) {
 
 // The other direction: an image written by the ROS-like probe (hand-made CDR) decodes here.
 TEST_F(Wire, ImagesFromARosPublisherDecode) {
-  cv::Mat gray(40, 60, CV_8UC1);
-  cv::randu(gray, 0, 255);
+  std::mt19937_64 rng(468);
+  const cv::Mat gray = refgrasp::testing::noiseImage(rng, 60, 40);
   const std::string pgm = (dir_ / "probe.pgm").string();
   cv::imwrite(pgm, gray);
   for (const std::string enc : {"mono8", "bgr8"}) {

@@ -9,6 +9,7 @@
 #include <sstream>
 #include <string>
 
+#include "common/noise_image.h"
 #include "common/temp_dir.h"
 #include "core/camera.h"
 #include "robot/camera.h"
@@ -46,13 +47,7 @@ inline StereoRig smallRig(int w = 64, int h = 48) {
   return rig;
 }
 
-/// Uniform noise (incompressible), type CV_8UC1 or CV_8UC3.
-inline cv::Mat noiseImage(std::mt19937_64& rng, int w, int h, int type = CV_8UC1) {
-  cv::Mat m(h, w, type);
-  std::uniform_int_distribution<int> d(0, 255);
-  for (size_t i = 0; i < m.total() * m.elemSize(); ++i) m.data[i] = static_cast<uchar>(d(rng));
-  return m;
-}
+using refgrasp::testing::noiseImage;  // seeded uniform noise (common/noise_image.h)
 
 inline bool identical(const cv::Mat& a, const cv::Mat& b) {
   if (a.size() != b.size() || a.type() != b.type()) return false;

@@ -5,6 +5,7 @@
 
 #include <cmath>
 
+#include "common/format.h"
 #include "core/error.h"
 #include "robot/backend.h"
 #include "robot/backends.h"
@@ -382,8 +383,9 @@ TEST(SimContact, HeldObjectFollowsTheHandAndAHeavyOneSlips) {
     EXPECT_FALSE(r.sim->collided()) << r.sim->lastError();
     const Pose wMo = r.sim->world().objects[static_cast<size_t>(s.target)].wMo;
     const double hand_rise = r.sim->wMe().t.z() - (wMo0 * eMo.inverse()).t.z();
-    std::printf("mass %.1f kg: hand rose %.3f m, box rose %.3f m, gripper %s\n", mass, hand_rise,
-                wMo.t.z() - wMo0.t.z(), toString(r.robot->gripper().phase()));
+    SCOPED_TRACE(refgrasp::testing::formatted("mass %.1f kg: hand rose %.3f m, box rose %.3f m, gripper %s", mass,
+                                              hand_rise, wMo.t.z() - wMo0.t.z(),
+                                              toString(r.robot->gripper().phase())));
     if (mass < m.gripper.max_payload_kg) {
       EXPECT_GT(hand_rise, 0.03);
       EXPECT_EQ(r.robot->gripper().phase(), GripperPhase::kHolding);

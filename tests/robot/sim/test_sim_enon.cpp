@@ -282,9 +282,8 @@ TEST(SimEnon, FrameDropsHappenAtTheConfiguredRate) {
     int dropped = 0;
     for (long k = 0; k < n; ++k) dropped += sim.frameDropped(k) ? 1 : 0;
     const double rate = static_cast<double>(dropped) / n;
-    std::printf("frame drop p=%.2f measured %.4f over %d frames\n", p, rate, n);
     // 4 standard deviations of a binomial proportion.
-    EXPECT_NEAR(rate, p, 4 * std::sqrt(p * (1 - p) / n) + 1e-12);
+    EXPECT_NEAR(rate, p, 4 * std::sqrt(p * (1 - p) / n) + 1e-12) << "frame drop rate over " << n << " frames";
   }
 }
 

@@ -4,7 +4,9 @@
 
 #include <cmath>
 #include <opencv2/core.hpp>
+#include <random>
 
+#include "common/noise_image.h"
 #include "robot/hal.h"
 #include "robot/sim/scenario.h"
 #include "robot/sim/sim_enon.h"
@@ -29,10 +31,9 @@ Scenario planeScenario(uint64_t seed) {
   sc.seed = seed;
   sim::SimObject o;
   o.name = "poster";
-  cv::Mat tex(64, 64, CV_8UC1);
-  cv::randu(tex, 0, 255);
+  std::mt19937_64 rng(seed);
   sim::TexturedPlane face;
-  face.texture = tex;
+  face.texture = refgrasp::testing::noiseImage(rng, 64, 64);
   face.width_m = face.height_m = 0.3;
   o.faces.push_back(face);  // face pose = object frame (oMp = I)
   // Object z points away from the robot (texture visible from -z), x along -y_w, y down.
