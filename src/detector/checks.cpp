@@ -12,7 +12,11 @@
 
 namespace refgrasp::detector {
 
-double maxPoseGapPx(double pattern_diagonal_px) { return std::max(4.0, 0.1 * pattern_diagonal_px); }
+double maxPoseGapPx(const SanityOptions& opt, double pattern_diagonal_px) {
+  return std::max(opt.max_pose_gap_px, 0.1 * pattern_diagonal_px);
+}
+
+double distinctAlignmentPx(double pattern_diagonal_px) { return std::max(4.0, 0.1 * pattern_diagonal_px); }
 
 namespace {
 
@@ -34,7 +38,7 @@ CheckOutcome checkPose(const CandidateContext& ctx, const MatchCandidate& cand, 
   const double diag = 0.5 * ((matched[2] - matched[0]).norm() + (matched[3] - matched[1]).norm());
   double gap = 0;
   for (int i = 0; i < 4; ++i) gap = std::max(gap, (matched[i] - d->corners[i]).norm());
-  if (!(gap <= maxPoseGapPx(diag))) return CheckOutcome::kPoseDisagrees;
+  if (!(gap <= maxPoseGapPx(opt.sanity, diag))) return CheckOutcome::kPoseDisagrees;
   // A pose fitted to the features that reprojects them poorly: the consensus does not come from
   // one rigid plane (on a facade, matches spanning two windows).
   if (opt.verify.enabled && from_features && !(p.rms_px <= opt.verify.max_feature_pose_rms_px))
@@ -82,7 +86,8 @@ CheckOutcome checkPhotometry(const CandidateContext& ctx, const MatchCandidate& 
 void checkAlternatives(const CandidateContext& ctx, const MatchCandidate& cand, Verdict* verdict) {
   const RegisteredObject& obj = ctx.object;
   const DetectorOptions& opt = ctx.opt;
-  const std::optional<MatchCandidate> other = alignAcrossPeriods(obj, opt, cand, ctx.scene, *ctx.grid);
+  std::optional<MatchCandidate> other;
+  if (opt.verify.period_rematch) other = alignAcrossPeriods(obj, opt, cand, ctx.scene, *ctx.grid);
   Detection other_detection;
   const MatchCandidate* kept = &cand;
   if (other && checkCandidate(ctx, *other, nullptr, &other_detection) == CheckOutcome::kOk &&

@@ -19,9 +19,12 @@
 namespace refgrasp::detector {
 
 /// The largest distance (px) between a pose's pattern corners and the matched homography's for
-/// the pose to be plausible: max(4 px, 10 % of the pattern's diagonal in the image). Alignments
-/// farther apart than this are distinct.
-double maxPoseGapPx(double pattern_diagonal_px);
+/// the pose to be plausible: max(sanity.max_pose_gap_px, 10 % of the pattern's diagonal in the
+/// image).
+double maxPoseGapPx(const SanityOptions& opt, double pattern_diagonal_px);
+/// Two alignments whose pattern corners lie farther apart than this (px) are distinct instances:
+/// max(4 px, 10 % of the pattern's diagonal), the pose check's default bound.
+double distinctAlignmentPx(double pattern_diagonal_px);
 
 /// What the checks of one object's candidates in one frame share.
 struct CandidateContext {

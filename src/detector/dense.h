@@ -27,28 +27,21 @@ struct DenseRefineOptions {
   /// correlates less than raw_trusted_correlation: both the template and the scene become
   /// (I - local mean) / sqrt(local variance + 5^2) (Gaussian window of this sigma, template px at
   /// the level used; the 5 gray levels keep flat areas' noise from being amplified). ECC absorbs
-  /// one gain and offset only; a photographed reference's light gradient, highlight and vignetting
-  /// pull the raw alignment off while it still converges (DenseRefine.
-  /// ANormalisedRetryAlignsAReferencePhotographedUnderOtherLight: raw 1.2-1.6 px off at
-  /// correlation 0.68-0.71, the retry within 0.16 px). Only a retry: on clean renders the raw
-  /// alignment is the more precise one (always normalised, the worst rotation of
-  /// Detector.DistortedSceneKeepsTheDenseRefinementAccuracy went from < 0.35 to 0.84 deg).
-  /// 0: no retry.
+  /// one gain and offset only; a photographed reference's light gradient, highlight and
+  /// vignetting pull the raw alignment off while it still converges. Only a retry: on clean
+  /// renders the raw alignment is the more precise one. 0: no retry.
   double normalize_sigma_px = 2.0;
   /// A raw alignment correlating at least this is kept without the retry (the gain-and-offset
   /// model explains the scene).
   double raw_trusted_correlation = 0.9;
   /// The retry's result replaces the raw one only when its correlation (of normalised
-  /// intensities, lower than raw ones for the same fit) reaches this, besides min_correlation: at
-  /// 0.5 a pattern 54 % visible was aligned 5.7 deg off in
-  /// PoseReplay.TrackingFollowsTheSequenceWithinTheDetectorsTolerances.
+  /// intensities, lower than raw ones for the same fit) reaches this, besides min_correlation:
+  /// lower, a partly occluded pattern can be aligned several degrees off.
   double normalized_min_correlation = 0.7;
   /// 2D-only objects: the dense H gives the corners only when the template it was aligned at (the
   /// pyramid level max_template_px allows) is at most this many times coarser, linearly, than
-  /// the pattern in the scene (2: one octave); a large target's many features fit better than
-  /// the capped template. Development splits, 2D, median worst-corner error with the dense H
-  /// always / this rule at 1.5 / at 2: 0.46 / 0.29 / 0.31 px at 200-300 px, 0.67 / 0.26 / 0.26
-  /// above, 0.28 / 0.32 / 0.29 at 120-160 px, 0.34 / 0.35 / 0.33 overall.
+  /// the pattern in the scene (2: one octave); a large target's many features fit its 8
+  /// parameters better than the capped template does.
   double max_2d_coarsening = 2.0;
   int pose_grid = 8;                 ///< pose from a pose_grid x pose_grid grid mapped by the H
   /// Robust to occluders: after ECC converges, template blocks of robust_block_px whose residual

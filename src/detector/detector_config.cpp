@@ -65,6 +65,7 @@ void visitFields(O& o, Visit&& v) {
   v("sanity.max_distance_m", o.sanity.max_distance_m);
   v("sanity.min_area_px2", o.sanity.min_area_px2);
   v("sanity.max_area_fraction", o.sanity.max_area_fraction);
+  v("sanity.max_pose_gap_px", o.sanity.max_pose_gap_px);
   v("verify.enabled", o.verify.enabled);
   v("verify.min_correlation", o.verify.min_correlation);
   v("verify.compare_px", o.verify.compare_px);
@@ -77,6 +78,7 @@ void visitFields(O& o, Visit&& v) {
   v("verify.realign_verified_gain", o.verify.realign_verified_gain);
   v("verify.realign_verified_cells", o.verify.realign_verified_cells);
   v("verify.realign_min_in_view", o.verify.realign_min_in_view);
+  v("verify.period_rematch", o.verify.period_rematch);
   v("verify.spare_candidate", o.verify.spare_candidate);
   v("verify.period_ambiguity_margin", o.verify.period_ambiguity_margin);
   v("verify.period_ambiguity_cells", o.verify.period_ambiguity_cells);

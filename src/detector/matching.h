@@ -38,10 +38,10 @@ struct MatchOptions {
   /// eps px of their prediction among the n reference features tested, when scene features fall
   /// at random (their number and the area they fall in give the density) and pass the local
   /// match's orientation, scale and descriptor tests by chance (frequencies measured per frame).
-  /// +inf: min_inliers alone decides (the count rule). The model's independence assumptions
-  /// overstate the significance of a few matches on real images: on the realistic development
-  /// split the only reports with log10 NFA in (-6, 0] were two wrong 8-inlier ones and one right
-  /// one, while right 8-inlier reports score -7 to -12. Hence -6, not the textbook 0.
+  /// +inf: min_inliers alone decides (the count rule). -6, not the textbook 0: the model's
+  /// independence assumptions overstate the significance of a few matches on real images, and
+  /// right 8-inlier consensuses score well below -6 while chance ones reach (-6, 0]
+  /// (docs/detector.md).
   double max_log10_nfa = -6.0;
   double ransac_reproj_px = 3.0;
   int max_instances = 1;               ///< disjoint instances reported per object
@@ -57,8 +57,7 @@ struct MatchOptions {
   /// the reference pose; the reference itself for 2D-only objects) maps affinely into the scene
   /// (6 parameters), unless the inliers need the homography's 2 perspective parameters (F test
   /// at 0.1 %). Over a small pattern the perspective is below ~2 px at f = 500 px, and a few
-  /// matches leave it poorly determined: on the realistic development split both remaining
-  /// wrong reports were such instances, corners 6-8 px off. 0: always the full homography.
+  /// matches leave it poorly determined (corners several px off). 0: always the full homography.
   double affine_below_px = 64;
   uint64_t seed = 0;
   /// Throws std::invalid_argument on nonsense.

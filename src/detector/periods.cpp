@@ -31,7 +31,7 @@ std::optional<MatchCandidate> alignAcrossPeriods(const RegisteredObject& obj, co
   if (moved.empty()) return std::nullopt;
   std::array<Eigen::Vector2d, 4> corners;
   for (int i = 0; i < 4; ++i) corners[i] = applyHomography(cand.H, obj.corners_und_px[i]);
-  const double distinct_px = maxPoseGapPx(patternDiagonal(obj, cand.H));
+  const double distinct_px = distinctAlignmentPx(patternDiagonal(obj, cand.H));
   const std::optional<MatchCandidate>* best = nullptr;
   const auto found = matchUnderHomographies(obj.index, scene, grid, opt.match, moved);
   for (const auto& c : found) {

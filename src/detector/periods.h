@@ -23,8 +23,8 @@ namespace refgrasp::detector {
 std::vector<Eigen::Matrix3d> movedByPeriods(const RegisteredObject& obj, const Eigen::Matrix3d& H);
 
 /// A repeated motif's other alignments: cand moved by each repeat period, its features matched
-/// again there. Returns a distinct alignment (corners farther apart than the pose check allows,
-/// maxPoseGapPx) whose consensus is more significant (lower log10 NFA), or nullopt. The matcher's
+/// again there. Returns a distinct alignment (corners farther apart than distinctAlignmentPx)
+/// whose consensus is more significant (lower log10 NFA), or nullopt. The matcher's
 /// search stops at its first candidate, which on a facade can be the consensus one window off;
 /// the caller checks the alternative like any candidate and keeps it only if it correlates at
 /// least as well.

@@ -16,6 +16,8 @@ void SanityOptions::check() const {
                   "must be >= 0");
   refgrasp::check(std::isfinite(max_area_fraction) && max_area_fraction > 0,
                   "SanityOptions.max_area_fraction", "must be positive");
+  refgrasp::check(std::isfinite(max_pose_gap_px) && max_pose_gap_px > 0 && max_pose_gap_px <= 1e9,
+                  "SanityOptions.max_pose_gap_px", "must be in (0, 1e9] (1e9: never)");
 }
 
 const char* sanityStatusName(SanityStatus s) {

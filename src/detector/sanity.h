@@ -13,6 +13,11 @@ struct SanityOptions {
   double max_distance_m = 10.0;
   double min_area_px2 = 400;     ///< projected pattern area in the image
   double max_area_fraction = 16;   ///< of the image area (a close-up shows a pattern up to 4x the frame)
+  /// A pose whose pattern corners lie farther than this (px; or 10 % of the pattern's diagonal
+  /// in the image when larger) from the matched homography's is refused: a pose caught in the
+  /// wrong one of a plane's two solutions, or pulled off by a few bad points, is not the instance
+  /// the features found. Alignments farther apart than this are distinct. 1e9: never.
+  double max_pose_gap_px = 4;
   void check() const;
 };
 

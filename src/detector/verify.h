@@ -1,10 +1,12 @@
 #pragma once
-// Verification of an accepted instance (issue 7): a wrong geometry that found enough consistent
-// matches (a shared logo, a repeated motif, clutter) must still be refused. The reference,
-// warped into the scene by the instance's homography, must look like the scene there:
-// zero-mean normalised cross-correlation over the pattern polygon, both sides smoothed and
-// compared at a coarse common resolution (so blur, noise, JPEG and a residual misalignment of a
-// pixel or two barely matter; gain and offset do not matter at all).
+// Photometric verification of an instance: the reference, warped into the scene by the
+// instance's homography, must look like the scene there. Zero-mean normalised cross-correlation
+// over the pattern polygon, both sides smoothed and compared at a coarse common resolution (so
+// blur, noise, JPEG and a residual misalignment of a pixel or two barely matter; gain and offset
+// do not matter at all), over the whole pattern and over each of its 3 x 3 cells.
+// VerifyOptions also holds the options of the rest of the verification stage (detector/checks.h):
+// re-alignment, repeat periods, photometric peaks, the spare candidate. Why each rule exists and
+// what it pays: docs/detector.md.
 //
 // Pixels: H maps reference px -> scene px (x_s ~ H x_r), both ideal pinhole pixels.
 #include <Eigen/Core>
@@ -16,103 +18,73 @@
 namespace refgrasp::detector {
 
 struct VerifyOptions {
+  /// false: no photometric check, and none of the re-alignment, period and peak rules below.
   bool enabled = true;
-  /// Refuse an instance whose warped reference correlates less than this with the scene.
+  /// Refuse an instance whose warped reference correlates less than this with the scene (and
+  /// count a cell as agreeing from this on: at least half the textured cells must).
   double min_correlation = 0.25;
-  /// Comparison resolution: the pattern is compared on at most this many pixels on its longer side.
+  /// Comparison resolution: the pattern is compared on at most this many pixels on its longer
+  /// side (coarse: a pixel or two of misalignment must not decorrelate fine texture).
   int compare_px = 48;
-  /// Of the pattern's 3 x 3 cells with texture, at least min_strong_cells (or all of them when
-  /// fewer have texture) must correlate >= strong_correlation on their own: a true instance agrees
-  /// strongly over most of the pattern even when partly occluded (>= 4 cells on the realistic
-  /// sets), a shared logo or word over the cell or two it covers (<= 2 on photo clutter).
+  /// Of the pattern's 3 x 3 cells with texture, at least min_strong_cells (all of them when
+  /// fewer have texture) must correlate >= strong_correlation on their own: a true instance
+  /// agrees strongly over most of the pattern even when partly occluded, a shared logo or word
+  /// over the cell or two it covers.
   double strong_correlation = 0.7;
   int min_strong_cells = 3;
-  /// ... and at least this many (or all with texture) for a reference with repeat periods
-  /// (repeatPeriods: a facade's windows, a printed grid). On a repeated motif a homography that
-  /// maps the lattice onto itself wrongly (a period off, or turned onto it) has cells agreeing
-  /// by chance wherever the motif repeats. On the development seeds (bench_realistic
-  /// --clutter 0: 3D seeds 33-45, 2D-only seeds 1-21, before the rule) the reports of periodic
-  /// references with 3 strong cells were all wrong (2: facades 20 and 110 px off), those with 4
-  /// right 5 times in 8, with 5 or more 642 times in 648; a reference without periods keeps
-  /// min_strong_cells (its reports with 3 strong cells: 3 right, 3 wrong). <= min_strong_cells
-  /// changes nothing.
+  /// ... at least this many for a reference with repeat periods (a facade's windows, a printed
+  /// grid): under a lattice map one period off, cells agree by chance wherever the motif repeats.
+  /// <= min_strong_cells: no extra rule.
   int periodic_min_strong_cells = 4;
-  /// Photometric re-alignment before the checks (3D objects with a dense-usable reference): when
-  /// the dense refinement of an instance converges but moves the pattern further than
-  /// DenseRefineOptions::max_corner_shift_px, the instance is aligned again photometrically with
-  /// room to move (half its diagonal), its features matched again there (matchUnderHomography),
-  /// and the result replaces it when the features support it as well (as many inliers, or a
-  /// log10 NFA as low) and it correlates better. A consensus one period off on a repeated motif
-  /// (a facade's windows) fits a stretched homography that passes every other check. Then, for a
-  /// reference with repeat periods (repeatPeriods), the instance moved by each period is matched
-  /// again too, and a distinct alignment with a more significant consensus (lower log10 NFA)
-  /// that correlates at least as well replaces it.
+
+  /// Photometric re-alignment before the checks (detector/realign.h; objects whose reference
+  /// allows the dense refinement): a dense alignment that converges but moves a corner further
+  /// than DenseRefineOptions::max_corner_shift_px is refined with room to move, the features
+  /// matched again there, and that candidate kept when the features and the scene support it
+  /// better. false: off, with the period and peak rules that follow it.
   bool realign = true;
-  /// When the re-alignment keeps (or ends with) a candidate whose dense refinement is refused for
-  /// moving a corner too far, that refinement is run again with room to move (half the pattern's
-  /// diagonal), and its alignment becomes the instance's (homography and pose) when its ECC
-  /// correlation is at least this. Few features on a small, oblique target fit a homography a
-  /// few pixels off that ECC, started there, corrects: on the development seeds such a wide
-  /// alignment at >= 0.9 had the better corners 3 times in 4 (typically from 2-8 px to under 1),
-  /// and fixed a magazine reported 11 px off. 1: never (the features' alignment is kept).
+  /// A refused dense refinement re-run with room to move (half the pattern's diagonal) becomes
+  /// the instance's alignment at this ECC correlation or more: few features on a small oblique
+  /// target fit a homography a few pixels off that ECC, started there, corrects. 1: never.
   double realign_trusted_correlation = 0.9;
-  /// ... or, below that ECC correlation, when its warped reference verifies clearly better than
-  /// the features' alignment: verifyInstance at the wide alignment correlates at least
-  /// realign_verified_correlation, with at least realign_verified_cells strong cells, and at
-  /// least realign_verified_gain more than at the features' homography. A far target's few
-  /// features fit a homography 5-25 px off that ECC, started there, brings within a pixel or two
-  /// at correlation 0.7-0.9: on the development seeds (bench_realistic --clutter 0, 3D seeds
-  /// 33-45, 2D-only seeds 1-21, 6720 frames) the rule moved 28 reports, 27 of them closer (a
-  /// right one 3.8 -> 4.6 px), took 7 wrong reports to within 3.5 px, found one more and lost
-  /// none; on the same reports a correlation floor of 0.8 would have moved one right report
-  /// off, a gain of 0.05 two. Not for a reference with repeat periods (a facade): there a
-  /// consensus one period off verifies as well as the right one, and on the report split the
-  /// rule took a facade a period off (21 px) from refused to reported. > 1: never.
+  /// ... or below that when its warped reference verifies clearly better than the features'
+  /// alignment: at least realign_verified_correlation, with realign_verified_cells strong cells,
+  /// and realign_verified_gain more than at the features' homography. Never on a reference with
+  /// repeat periods, where one period off verifies as well. > 1: never.
   double realign_verified_correlation = 0.85;
   double realign_verified_gain = 0.08;
   int realign_verified_cells = 8;
-  /// The re-alignment (and the repeat-period and peak tests that come with it) only for an
-  /// instance with at least this fraction of its projected pattern inside the frame: its trigger
-  /// and its acceptance are measured at the pattern's corners, which a close-up (a pattern
-  /// larger than the frame) puts far outside it, where a photometric alignment of the part in
-  /// view extrapolates poorly. On photo pairs zoomed 1.3-2.9x (bench_pairs) the re-alignment
-  /// moved features' corners within 1.5 px to 4-13 px off. 0: always.
+  /// Re-align (and run the period and peak rules) only an instance with at least this fraction
+  /// of its projected pattern inside the frame: they are measured at the pattern's corners, which
+  /// a close-up puts far outside it. 0: always.
   double realign_min_in_view = 0.7;
-  /// When every candidate the matcher returned (match.max_instances of them) fails the checks,
-  /// ask it for one more and check the new one too: the search stops at its first candidates,
-  /// and on a facade the first can be a consensus one window off that the pose check refuses
-  /// while the right one, with fewer matches, comes next.
+  /// For a reference with repeat periods: the features matched again with the instance moved by
+  /// each period (detector/periods.h alignAcrossPeriods); a distinct alignment with a more
+  /// significant consensus that passes every check and correlates at least as well replaces it.
+  bool period_rematch = true;
+  /// When every candidate the matcher returned (match.max_instances) fails the checks, ask it
+  /// for one more: its search stops at its first candidates, and on a facade the first can be a
+  /// consensus one window off while the object comes next.
   bool spare_candidate = true;
-  /// Repeat-period ambiguity (3D objects whose reference has repeat periods, with realign): an
-  /// instance that passed every check is moved by each repeat period, aligned there
-  /// photometrically (dense refinement with room to move, 0.3 x its diagonal) and verified
-  /// (verifyInstance). When one of those alignments agrees with the scene clearly better than
-  /// the instance itself (correlation higher by more than period_ambiguity_margin and at least
-  /// period_ambiguity_cells more strong cells), the features' alignment is in doubt and the
-  /// instance is refused (a miss, "not verified"): on a facade a consensus one window off passes
-  /// every other check, and a confident wrong answer is worse than a miss. On the development
-  /// seeds every such wrong report had fewer strong cells than the truth. period_ambiguity_cells
-  /// > 9: never.
+  /// Ambiguity test (detector/periods.h periodAmbiguity): an instance that passed every check is
+  /// moved by each repeat period (and to its photometric peaks) and aligned there by ECC; when an
+  /// alignment correlates more than period_ambiguity_margin better with at least
+  /// period_ambiguity_cells more strong cells, the instance is refused: a confident wrong answer
+  /// is worse than a miss. > 9 cells: never.
   double period_ambiguity_margin = 0.01;
   int period_ambiguity_cells = 2;
-  /// ... unless that alignment agrees strongly everywhere (9 strong cells, correlation >= this),
-  /// the features match again under it (matchUnderHomography) and it passes every check: then it
-  /// replaces the instance (homography and pose from the alignment). 1.01: never (refuse only).
+  /// ... unless that alignment agrees strongly everywhere (9 strong cells, correlation >= this)
+  /// and passes every check with its features matched there: then it replaces the instance.
+  /// 1.01: never (refuse only).
   double period_switch_correlation = 0.95;
-  /// Photometric peak search (with realign, any 3D object with a dense-usable reference): the
-  /// instance that passed every check is compared, by masked zero-mean NCC of its warped
-  /// reference (48 px on the diagonal), with the scene at every translation up to
-  /// peak_search_reach x its diagonal; the best peak_search_count local maxima more than 3 px
-  /// away that correlate better than the instance's own place by more than peak_search_margin
-  /// join the repeat periods' moves in the ambiguity test above (aligned by ECC there, refused or
-  /// replaced by the same rules). A few features on a small target fit a homography several
-  /// pixels off that passes every check while a better alignment lies beside it, out of ECC's
-  /// reach from there (development seed 19 photos/47: fruits 11 px off, refused). 0: off.
-  /// A pose fitted to the matched features (the refined method when the dense alignment was
-  /// refused) whose reprojection RMS exceeds this is refused: the consensus does not come from
-  /// one rigid plane. On the development splits (2700 right reports, 250 of them with such a pose)
-  /// every right one was <= 1.49 px; a facade consensus spanning two windows, 47 px off, 2.1 px.
+  /// A pose fitted to the matched features (the dense alignment refused) whose reprojection RMS
+  /// (px) exceeds this is refused: the consensus does not come from one rigid plane. 1000: never.
   double max_feature_pose_rms_px = 1.75;
+  /// Photometric peak search (detector/peak_search.h): the best peak_search_count translations
+  /// up to peak_search_reach x the pattern's diagonal at which the warped reference correlates
+  /// more than peak_search_margin better than at the instance join the ambiguity test. A few
+  /// features on a small target can fit a homography several pixels off while a better
+  /// alignment lies beside it, out of ECC's reach. 0: off.
   int peak_search_count = 2;
   double peak_search_reach = 0.7;
   double peak_search_margin = 0.05;

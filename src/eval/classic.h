@@ -1,5 +1,5 @@
 #pragma once
-// The classic OpenCV pipeline that refgrasp is compared with (issue 7): cv::SIFT, brute-force
+// The classic OpenCV pipeline that refgrasp is compared with: cv::SIFT, brute-force
 // 2-NN with Lowe's ratio 0.8, cv::findHomography (RANSAC, 3 px), accepted with >= 10 inliers,
 // pose by IPPE + Levenberg-Marquardt (cv::solvePnP SOLVEPNP_IPPE, cv::solvePnPRefineLM) on the
 // homography inliers. The reference features are those inside the object's pattern region.

@@ -1,5 +1,5 @@
 #pragma once
-// Photo pairs (issue 7): a reference photo and one scene photo of the same planar picture, 2D
+// Photo pairs: a reference photo and one scene photo of the same planar picture, 2D
 // only, scored by the corners of the reference mapped by the reported homography, the way
 // affine-viewpoint benchmarks score image pairs. Five families of pairs, each at five levels of
 // growing difficulty:

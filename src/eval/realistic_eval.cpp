@@ -119,14 +119,14 @@ SetFrame RealisticSet::frame(int i) const {
 namespace {
 
 // The object without its reference pose (2D-only): the same image, camera and pattern region.
-detector::ObjectModel planarOnly(const detector::ObjectModel& m) {
+}  // namespace
+
+detector::ObjectModel twoDOnly(const detector::ObjectModel& m) {
   detector::ObjectModel out = detector::makeObjectModel(m.name, m.reference, m.camera, std::nullopt,
                                                         m.pattern_polygon_px, m.plane_normal_o, m.plane_offset_m, m.source);
   out.pattern_region_exact = m.pattern_region_exact;
   return out;
 }
-
-}  // namespace
 
 MethodOutcome scoreOutcome(const SetObject& obj, const SetFrame& f, const Eigen::Matrix3d& H,
                            const std::optional<Pose>& cMo) {
@@ -161,7 +161,7 @@ std::vector<FrameOutcome> evaluateSet(const RealisticSet& set, const EvalOptions
     const SetObject& o = objects[f.object];
     if (!dets[f.object]) {
       dets[f.object] = std::make_unique<detector::Detector>(opt.detector);
-      const detector::ObjectModel model = opt.two_d ? planarOnly(o.model) : o.model;
+      const detector::ObjectModel model = opt.two_d ? twoDOnly(o.model) : o.model;
       dets[f.object]->addObject(model);
       classics[f.object] = std::make_unique<ClassicPipeline>(model);
     }
@@ -365,18 +365,9 @@ cv::Mat sibling(const cv::Mat& pattern, const cv::Mat& base, std::mt19937_64& rn
 
 }  // namespace
 
-ClutterReport evaluateClutter(const std::vector<SetObject>& objects, const detector::DetectorOptions& opt,
-                              int frames, uint64_t seed, bool run_classic) {
-  ClutterReport rep;
-  rep.frames = frames;
-  detector::Detector det(opt);
-  std::vector<std::unique_ptr<ClassicPipeline>> classics;
+ClutterFrame clutterFrame(const std::vector<SetObject>& objects, uint64_t seed, int i) {
   std::vector<std::string> registered;
-  for (const auto& o : objects) {
-    det.addObject(o.model);
-    if (run_classic) classics.push_back(std::make_unique<ClassicPipeline>(o.model));
-    registered.push_back(o.texture);
-  }
+  for (const auto& o : objects) registered.push_back(o.texture);
   // Bases for siblings: media textures that are no registered pattern.
   std::vector<std::string> bases = {"hard/low_texture.png", "boxes/box_side_a.png", "boxes/box_side_b.png",
                                     "boxes/box_top.png", "backgrounds/wall.png", "clutter/clutter_05.png"};
@@ -384,27 +375,42 @@ ClutterReport evaluateClutter(const std::vector<SetObject>& objects, const detec
     if (std::find(registered.begin(), registered.end(), p) == registered.end()) bases.push_back(p);
   for (const auto& p : testing::targetTextures())
     if (std::find(registered.begin(), registered.end(), p) == registered.end()) bases.push_back(p);
-  const Intrinsics cam = testing::sceneCamera();
+  ClutterFrame out;
+  out.camera = testing::sceneCamera();
+  std::mt19937_64 rng(mix(seed, static_cast<uint64_t>(i)));
+  std::vector<sim::TexturedPlane> planes;
+  const int n = std::uniform_int_distribution<int>(1, 3)(rng);
+  for (int k = 0; k < n; ++k) {
+    const SetObject& o = objects[std::uniform_int_distribution<size_t>(0, objects.size() - 1)(rng)];
+    const cv::Mat base = testing::loadMedia(bases[std::uniform_int_distribution<size_t>(0, bases.size() - 1)(rng)]);
+    sim::TexturedPlane p;
+    p.texture = sibling(testing::loadMedia(o.texture), base, rng);
+    p.width_m = o.width_m;
+    p.height_m = o.height_m;
+    p.cMp = testing::randomVisiblePose(rng, out.camera, p.width_m, p.height_m, 0.35, 1.6, 55 * kDeg);
+    planes.push_back(p);
+  }
+  testing::RealisticSceneSpec s;
+  s.look = testing::randomCameraLook(rng, uni(rng, 0.3, 1.0), Eigen::Vector2d(uni(rng, 0, 640), uni(rng, 0, 480)));
+  s.seed = rng();
+  s.exclude_from_background = registered;
+  out.image = testing::renderRealisticScene(out.camera, cv::Mat(), 0, 0, s, planes).image;
+  return out;
+}
+
+ClutterReport evaluateClutter(const std::vector<SetObject>& objects, const detector::DetectorOptions& opt,
+                              int frames, uint64_t seed, bool run_classic) {
+  ClutterReport rep;
+  rep.frames = frames;
+  detector::Detector det(opt);
+  std::vector<std::unique_ptr<ClassicPipeline>> classics;
+  for (const auto& o : objects) {
+    det.addObject(o.model);
+    if (run_classic) classics.push_back(std::make_unique<ClassicPipeline>(o.model));
+  }
   for (int i = 0; i < frames; ++i) {
-    std::mt19937_64 rng(mix(seed, static_cast<uint64_t>(i)));
-    std::vector<sim::TexturedPlane> planes;
-    const int n = std::uniform_int_distribution<int>(1, 3)(rng);
-    for (int k = 0; k < n; ++k) {
-      const SetObject& o = objects[std::uniform_int_distribution<size_t>(0, objects.size() - 1)(rng)];
-      const cv::Mat base = testing::loadMedia(bases[std::uniform_int_distribution<size_t>(0, bases.size() - 1)(rng)]);
-      sim::TexturedPlane p;
-      p.texture = sibling(testing::loadMedia(o.texture), base, rng);
-      p.width_m = o.width_m;
-      p.height_m = o.height_m;
-      p.cMp = testing::randomVisiblePose(rng, cam, p.width_m, p.height_m, 0.35, 1.6, 55 * kDeg);
-      planes.push_back(p);
-    }
-    testing::RealisticSceneSpec s;
-    s.look = testing::randomCameraLook(rng, uni(rng, 0.3, 1.0), Eigen::Vector2d(uni(rng, 0, 640), uni(rng, 0, 480)));
-    s.seed = rng();
-    s.exclude_from_background = registered;
-    const testing::RealisticScene sc = testing::renderRealisticScene(cam, cv::Mat(), 0, 0, s, planes);
-    const detector::DetectionResult r = det.detect(sc.image, cam);
+    const ClutterFrame sc = clutterFrame(objects, seed, i);
+    const detector::DetectionResult r = det.detect(sc.image, sc.camera);
     for (const auto& d : r.detections)
       if (d.found) {
         ++rep.detections;
@@ -413,7 +419,7 @@ ClutterReport evaluateClutter(const std::vector<SetObject>& objects, const detec
       }
     if (run_classic) {
       const ClassicFeatures cf = classicSift(sc.image);
-      for (const auto& c : classics) rep.classic_detections += c->detect(cf, cam).found;
+      for (const auto& c : classics) rep.classic_detections += c->detect(cf, sc.camera).found;
     }
   }
   return rep;

@@ -1,5 +1,5 @@
 #pragma once
-// Evaluation of the detector on realistic sets (issue 7), side by side with the classic OpenCV
+// Evaluation of the detector on realistic sets, side by side with the classic OpenCV
 // pipeline (eval/classic.h): the same frames, tables by distance, tilt and target size.
 //
 // A set: objects defined from reference PHOTOGRAPHS (robot/sim/realistic_scene.h: oblique, other
@@ -11,7 +11,7 @@
 // Scoring (per method and frame): "found" = reported with the four true texture corners, mapped
 // by the reported homography, within max(5 px, 10 % of the target's diagonal) of the truth;
 // "wrong" = reported but not found (a false positive); "pose ok" = found with rotation error
-// < 2 deg and translation error < 2 % of the distance (the issue's criterion).
+// < 2 deg and translation error < 2 % of the distance.
 #include <Eigen/Core>
 #include <array>
 #include <cstdint>
@@ -110,6 +110,10 @@ struct EvalOptions {
   bool two_d = false;
 };
 
+/// The object without its reference pose: 2D-only (homography and corners, no cMo), the use of a
+/// reference photo nobody measured.
+detector::ObjectModel twoDOnly(const detector::ObjectModel& model);
+
 /// Runs both methods on frames [first, last) of the set, each with only the frame's object
 /// registered. progress(i) is called per frame when given.
 std::vector<FrameOutcome> evaluateSet(const RealisticSet& set, const EvalOptions& opt, int first, int last,
@@ -143,6 +147,13 @@ struct ClutterReport {
   int frames = 0, detections = 0, classic_detections = 0;
   std::vector<std::string> details;  ///< one line per false detection
 };
+/// Frame i of the photo clutter evaluateClutter shows (seed) when `objects` are registered.
+struct ClutterFrame {
+  cv::Mat image;
+  Intrinsics camera;
+};
+ClutterFrame clutterFrame(const std::vector<SetObject>& objects, uint64_t seed, int i);
+
 ClutterReport evaluateClutter(const std::vector<SetObject>& objects, const detector::DetectorOptions& opt,
                               int frames, uint64_t seed, bool run_classic);
 

@@ -1,6 +1,6 @@
-// Acceptance of an instance (issue 7): the a-contrario test takes small far targets with few
-// consistent matches that the old fixed count (12 inliers) refused, and the verification of the
-// warped reference refuses a wrong geometry that enough matches support.
+// Acceptance of an instance: the a-contrario test takes small far targets with few consistent
+// matches that a fixed count (12 inliers) refuses, and the verification of the warped reference
+// refuses a wrong geometry that enough matches support.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -25,7 +25,7 @@ constexpr double kDeg = M_PI / 180;
 
 TEST(Acceptance, FewConsistentMatchesOnAFarTargetAreAccepted) {
   // 20 cm targets at 2.0-2.6 m (42-55 px wide) in clutter: the default (a-contrario, floor of
-  // 8 inliers) against the count rule of before (12 inliers, no a-contrario test).
+  // 8 inliers) against a count rule (12 inliers, no a-contrario test).
   DetectorOptions count_rule;
   count_rule.match.min_inliers = 12;
   count_rule.match.max_log10_nfa = HUGE_VAL;

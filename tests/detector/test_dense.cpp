@@ -146,8 +146,8 @@ TEST(DenseRefine, ANormalisedRetryAlignsAReferencePhotographedUnderOtherLight) {
 
 // A polygon region (make_reference's pattern_region): only the template pixels inside it count.
 // The scene shows the pattern inside a hexagon and another texture outside it (what a reference
-// photo's surroundings do): with the mask the refinement recovers H; before the mask was moved
-// into the scene's frame, OpenCV threw on the size mismatch and every polygon refinement failed.
+// photo's surroundings do): with the mask the refinement recovers H (the mask must be moved into
+// the scene's frame: a size mismatch makes OpenCV throw and the refinement fail).
 TEST(DenseRefine, APolygonRegionMasksTheTemplate) {
   const cv::Mat tex = loadMedia("targets/poster_concert.png");
   const cv::Mat other = loadMedia("clutter/clutter_03.png");

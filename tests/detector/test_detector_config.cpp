@@ -104,6 +104,8 @@ TEST(DetectorConfig, BadFilesGiveOneLineErrorsNamingTheField) {
       {"range3j.yaml", "verify: {realign_verified_cells: 10}\n", "verify.realign_verified_cells: must be in [0, 9]"},
       {"range3k.yaml", "verify: {periodic_min_strong_cells: -1}\n", "verify.periodic_min_strong_cells: must be in [0, 9]"},
       {"bool2.yaml", "verify: {spare_candidate: 2}\n", "verify.spare_candidate: expected true or false"},
+      {"bool3.yaml", "verify: {period_rematch: maybe}\n", "verify.period_rematch: expected true or false"},
+      {"range2b.yaml", "sanity: {max_pose_gap_px: 0}\n", "sanity.max_pose_gap_px: must be in (0, 1e9] (1e9: never)"},
       {"range3d.yaml", "verify: {period_ambiguity_cells: 11}\n", "verify.period_ambiguity_cells: must be in [1, 10] (10: never)"},
       {"fraction2.yaml", "verify: {period_ambiguity_cells: 2.5}\n", "verify.period_ambiguity_cells: expected an integer"},
       {"nan2.yaml", "verify: {period_ambiguity_margin: .nan}\n", "verify.period_ambiguity_margin: must be finite"},

@@ -1,4 +1,4 @@
-// Hostile detector inputs (issue 11): option files asking for counts that would hang a frame, keys
+// Hostile detector inputs: option files asking for counts that would hang a frame, keys
 // given twice or mistyped; object files whose pattern region would make the simplicity test
 // quadratic in a huge polygon; reference images that are bombs. One line, at start-up.
 #include <gtest/gtest.h>

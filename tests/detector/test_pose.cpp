@@ -226,6 +226,14 @@ TEST(Sanity, EachRuleRejects) {
   SanityOptions bad;
   bad.max_distance_m = 0.1;
   EXPECT_THROW(bad.check(), std::invalid_argument);
+  for (const double gap : {0.0, -1.0, 2e9, std::nan("")}) {
+    SanityOptions o;
+    o.max_pose_gap_px = gap;
+    EXPECT_THROW(o.check(), std::invalid_argument) << gap;
+  }
+  SanityOptions never;
+  never.max_pose_gap_px = 1e9;  // the pose check off
+  EXPECT_NO_THROW(never.check());
 }
 
 TEST(Stereo, FusionAveragesInTheLeftFrame) {

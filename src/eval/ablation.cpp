@@ -1,0 +1,315 @@
+#include "eval/ablation.h"
+
+#include <atomic>
+#include <cmath>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <stdexcept>
+#include <thread>
+
+#include "detector/object.h"
+#include "eval/eval_util.h"
+#include "eval/pairs_eval.h"
+#include "eval/realistic_eval.h"
+
+namespace refgrasp::eval {
+
+using detail::median;
+using detail::timed;
+
+std::vector<AblationVariant> verificationAblation() {
+  using O = detector::DetectorOptions;
+  return {
+      {"all checks", "(defaults)", [](O*) {}},
+      {"no photometric verification", "verify.enabled: false", [](O* o) { o->verify.enabled = false; }},
+      {"no correlation floor", "verify.min_correlation: -1", [](O* o) { o->verify.min_correlation = -1; }},
+      {"no strong-cell rule", "verify.min_strong_cells: 0", [](O* o) { o->verify.min_strong_cells = 0; }},
+      {"no periodic strong-cell rule", "verify.periodic_min_strong_cells: 3",
+       [](O* o) { o->verify.periodic_min_strong_cells = o->verify.min_strong_cells; }},
+      {"no re-alignment (and what comes with it)", "verify.realign: false", [](O* o) { o->verify.realign = false; }},
+      {"no trusted wide alignment", "verify.realign_trusted_correlation: 1",
+       [](O* o) { o->verify.realign_trusted_correlation = 1; }},
+      {"no verified wide alignment", "verify.realign_verified_correlation: 1.01",
+       [](O* o) { o->verify.realign_verified_correlation = 1.01; }},
+      {"re-alignment of close-ups too", "verify.realign_min_in_view: 0",
+       [](O* o) { o->verify.realign_min_in_view = 0; }},
+      {"no period re-match", "verify.period_rematch: false", [](O* o) { o->verify.period_rematch = false; }},
+      {"no period ambiguity test", "verify.period_ambiguity_cells: 10",
+       [](O* o) { o->verify.period_ambiguity_cells = 10; }},
+      {"no photometric peak search", "verify.peak_search_count: 0", [](O* o) { o->verify.peak_search_count = 0; }},
+      {"no feature-pose RMS bound", "verify.max_feature_pose_rms_px: 1000",
+       [](O* o) { o->verify.max_feature_pose_rms_px = 1000; }},
+      {"no pose-gap check", "sanity.max_pose_gap_px: 1e9", [](O* o) { o->sanity.max_pose_gap_px = 1e9; }},
+      {"no spare candidate", "verify.spare_candidate: false", [](O* o) { o->verify.spare_candidate = false; }},
+      {"no sanity limits", "sanity: distance 0-1e9 m, area 0-1e9 x frame",
+       [](O* o) {
+         o->sanity.min_distance_m = 0;
+         o->sanity.max_distance_m = 1e9;
+         o->sanity.min_area_px2 = 0;
+         o->sanity.max_area_fraction = 1e9;
+       }},
+      {"2D: dense alignment at any coarsening", "dense.max_2d_coarsening: 1e9",
+       [](O* o) { o->dense.max_2d_coarsening = 1e9; }},
+  };
+}
+
+void AblationData::check() const {
+  if (seeds.empty() && pair_seeds == 0 && clutter_frames == 0)
+    throw std::invalid_argument("AblationData: no data (no seeds, pairs or clutter)");
+  if (frames_per_set < 1) throw std::invalid_argument("AblationData.frames_per_set: must be >= 1");
+  if (pair_seeds < 0) throw std::invalid_argument("AblationData.pair_seeds: must be >= 0");
+  if (clutter_frames < 0) throw std::invalid_argument("AblationData.clutter_frames: must be >= 0");
+  if (clutter_frames > 0 && seeds.empty())
+    throw std::invalid_argument("AblationData.clutter_frames: needs a realistic seed (its objects)");
+}
+
+namespace {
+
+// One variant on one frame or pair.
+struct ItemOutcome {
+  bool reported = false, found = false, pose_ok = false, within = false, wrong = false;
+  int false_detections = 0;  // clutter
+  Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+  double ms = 0, checks_ms = 0;
+};
+
+enum class ItemKind { k3d, k2d, kPair, kClutter };
+
+// A frame or pair to evaluate with every variant.
+struct Item {
+  ItemKind kind = ItemKind::k3d;
+  int set = 0, frame = 0;  // realistic: set index, frame; pairs: index into the pair list; clutter: frame
+};
+
+struct PairSpec {
+  std::string texture;
+  PairFamily family;
+  int level;
+  uint64_t seed;
+};
+
+// Detectors of one worker thread, per variant and registered object.
+struct WorkerDetectors {
+  std::map<std::tuple<int, int, int, bool>, std::unique_ptr<detector::Detector>> per_object;  // variant, set, object, 2d
+  std::map<int, std::unique_ptr<detector::Detector>> clutter;                                // variant
+};
+
+ItemOutcome runRealistic(const detector::Detector& det, const RealisticSet& set, const SetFrame& f, bool two_d) {
+  ItemOutcome o;
+  detector::DetectionResult res;
+  o.ms = timed(true, [&] { res = det.detect(f.image, f.camera); });
+  o.checks_ms = res.time_ms.pose;
+  if (const auto d = res.find(0)) {
+    const MethodOutcome m = scoreOutcome(set.objects()[f.object], f, d->H, two_d ? std::nullopt : d->cMo);
+    o.reported = true;
+    o.found = m.found;
+    o.pose_ok = !two_d && m.pose_ok;
+    o.within = m.found && m.corner_px <= 3;
+    o.wrong = !m.found;
+    o.H = d->H;
+  }
+  return o;
+}
+
+}  // namespace
+
+std::vector<AblationCounts> runAblation(const std::vector<AblationVariant>& variants, const AblationData& data,
+                                        int threads, const std::function<void(int, int)>& progress) {
+  data.check();
+  if (variants.empty()) throw std::invalid_argument("runAblation: no variants");
+  if (threads < 1) throw std::invalid_argument("runAblation: threads must be >= 1");
+  std::vector<detector::DetectorOptions> options(variants.size());
+  for (size_t v = 0; v < variants.size(); ++v) {
+    variants[v].apply(&options[v]);
+    options[v].sift.threads = 1;
+    options[v].check();
+  }
+  // The data: every set of every seed, the pairs, the clutter objects.
+  std::vector<std::unique_ptr<RealisticSet>> sets;
+  for (const uint64_t seed : data.seeds)
+    for (const RealisticSetSpec& spec : realisticSets(seed, data.frames_per_set))
+      sets.push_back(std::make_unique<RealisticSet>(spec));
+  std::vector<SetObject> clutter_objects;
+  for (size_t s = 0; s < std::min<size_t>(sets.size(), 3); ++s)
+    if (sets[s]->spec().name != "far_oblique")
+      for (const SetObject& o : sets[s]->objects()) clutter_objects.push_back(o);
+  std::vector<PairSpec> pairs;
+  const std::vector<std::string> textures = pairTextures();
+  for (int k = 0; k < data.pair_seeds; ++k)
+    for (int f = 0; f < kPairFamilies; ++f)
+      for (int l = 0; l < kPairLevels; ++l)
+        for (size_t t = 0; t < textures.size(); ++t)
+          pairs.push_back({textures[t], static_cast<PairFamily>(f), l,
+                           pairSeed(data.pair_first_seed + static_cast<uint64_t>(k), static_cast<int>(t))});
+  std::vector<Item> items;
+  for (size_t s = 0; s < sets.size(); ++s)
+    for (int i = 0; i < sets[s]->frames(); ++i) items.push_back({ItemKind::k3d, static_cast<int>(s), i});
+  for (size_t p = 0; p < pairs.size(); ++p) items.push_back({ItemKind::kPair, 0, static_cast<int>(p)});
+  for (int i = 0; i < data.clutter_frames; ++i) items.push_back({ItemKind::kClutter, 0, i});
+
+  // results[item][variant]; a realistic frame's 2D run goes to results2d.
+  std::vector<std::vector<ItemOutcome>> results(items.size()), results2d(items.size());
+  std::atomic<size_t> next{0};
+  std::atomic<int> done{0};
+  std::mutex progress_mu;
+  auto work = [&] {
+    WorkerDetectors dets;
+    int current_set = -1;
+    for (size_t k = next++; k < items.size(); k = next++) {
+      const Item& it = items[k];
+      if (it.kind == ItemKind::k3d && it.set != current_set) {  // a new set: the last one's detectors go
+        dets.per_object.clear();
+        current_set = it.set;
+      }
+      std::vector<ItemOutcome> out(variants.size()), out2d;
+      if (it.kind == ItemKind::k3d) {
+        const RealisticSet& set = *sets[static_cast<size_t>(it.set)];
+        const SetFrame f = set.frame(it.frame);
+        for (int pass = 0; pass < (data.two_d ? 2 : 1); ++pass) {
+          const bool two_d = pass == 1;
+          std::vector<ItemOutcome>& dst = two_d ? out2d : out;
+          dst.resize(variants.size());
+          // Variants in an order rotated per frame: each is first (cache-cold) equally often.
+          for (size_t r = 0; r < variants.size(); ++r) {
+            const size_t v = (r + k) % variants.size();
+            auto& det = dets.per_object[{static_cast<int>(v), it.set, f.object, two_d}];
+            if (!det) {
+              det = std::make_unique<detector::Detector>(options[v]);
+              const detector::ObjectModel& m = set.objects()[f.object].model;
+              det->addObject(two_d ? twoDOnly(m) : m);
+            }
+            dst[v] = runRealistic(*det, set, f, two_d);
+          }
+        }
+      } else if (it.kind == ItemKind::kPair) {
+        const PairSpec& ps = pairs[static_cast<size_t>(it.frame)];
+        const ViewPair p = makeViewPair(ps.texture, ps.family, ps.level, ps.seed);
+        const detector::ObjectModel model = detector::makeObjectModel(ps.texture, p.reference, std::nullopt, std::nullopt);
+        for (size_t v = 0; v < variants.size(); ++v) {
+          detector::Detector det(options[v]);
+          det.addObject(model);
+          const detector::DetectionResult res = det.detect(p.scene, p.camera);
+          if (const auto d = res.find(0)) {
+            const double err = worstCornerError(p, d->H);
+            out[v].reported = true;
+            out[v].within = err <= 3;
+            out[v].found = err <= 30;
+            out[v].wrong = err > 30;
+            out[v].H = d->H;
+          }
+        }
+      } else {
+        const ClutterFrame c = clutterFrame(clutter_objects, data.seeds.front(), it.frame);
+        for (size_t v = 0; v < variants.size(); ++v) {
+          auto& det = dets.clutter[static_cast<int>(v)];
+          if (!det) {
+            det = std::make_unique<detector::Detector>(options[v]);
+            for (const SetObject& o : clutter_objects) det->addObject(o.model);
+          }
+          const detector::DetectionResult res = det->detect(c.image, c.camera);
+          for (const auto& d : res.detections) out[v].false_detections += d.found;
+          out[v].reported = out[v].false_detections > 0;
+        }
+      }
+      results[k] = std::move(out);
+      results2d[k] = std::move(out2d);
+      const int n = ++done;
+      if (progress) {
+        std::lock_guard<std::mutex> lock(progress_mu);
+        progress(n, static_cast<int>(items.size()));
+      }
+    }
+  };
+  std::vector<std::thread> pool;
+  for (int t = 0; t < threads; ++t) pool.emplace_back(work);
+  for (auto& t : pool) t.join();
+
+  // Tallies; "changed" and "moved" against variant 0.
+  std::vector<AblationCounts> counts(variants.size());
+  std::vector<std::vector<double>> ms(variants.size());
+  std::vector<double> checks_ms(variants.size(), 0);
+  auto differs = [](const ItemOutcome& a, const ItemOutcome& b) {
+    return a.reported != b.reported || a.found != b.found || a.pose_ok != b.pose_ok || a.within != b.within ||
+           a.wrong != b.wrong || a.false_detections != b.false_detections;
+  };
+  auto moved = [](const ItemOutcome& a, const ItemOutcome& b) {
+    return a.reported && b.reported && (a.H - b.H).cwiseAbs().maxCoeff() > 1e-9 * std::max(1.0, b.H.cwiseAbs().maxCoeff());
+  };
+  for (size_t k = 0; k < items.size(); ++k)
+    for (size_t v = 0; v < variants.size(); ++v) {
+      AblationCounts& c = counts[v];
+      const ItemOutcome& o = results[k][v];
+      c.changed += differs(o, results[k][0]);
+      c.moved += moved(o, results[k][0]);
+      switch (items[k].kind) {
+        case ItemKind::k3d: {
+          ++c.frames_3d;
+          c.found_3d += o.found;
+          c.pose_ok_3d += o.pose_ok;
+          c.wrong_3d += o.wrong;
+          ms[v].push_back(o.ms);
+          checks_ms[v] += o.checks_ms;
+          if (!results2d[k].empty()) {
+            const ItemOutcome& o2 = results2d[k][v];
+            ++c.frames_2d;
+            c.found_2d += o2.found;
+            c.within_3px_2d += o2.within;
+            c.wrong_2d += o2.wrong;
+            c.changed += differs(o2, results2d[k][0]);
+            c.moved += moved(o2, results2d[k][0]);
+          }
+          break;
+        }
+        case ItemKind::k2d: break;
+        case ItemKind::kPair:
+          ++c.pairs;
+          c.pairs_within_3px += o.within;
+          c.pairs_wrong += o.wrong;
+          break;
+        case ItemKind::kClutter:
+          ++c.clutter_frames;
+          c.clutter_false += o.false_detections;
+          break;
+      }
+    }
+  for (size_t v = 0; v < variants.size(); ++v) {
+    counts[v].median_ms = ms[v].empty() ? 0 : median(ms[v]);
+    counts[v].mean_checks_ms = ms[v].empty() ? 0 : checks_ms[v] / static_cast<double>(ms[v].size());
+  }
+  return counts;
+}
+
+std::string formatAblation(const std::vector<AblationVariant>& variants, const std::vector<AblationCounts>& counts) {
+  std::string s =
+      "| rule switched off | option | 3D found | 3D pose ok | 3D wrong | 2D found | 2D within 3 px | 2D wrong | "
+      "pairs within 3 px | pairs wrong | clutter false | outcomes changed | reports moved | ms / frame | checks ms "
+      "/ frame |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n";
+  if (counts.empty()) return s;
+  const AblationCounts& b = counts[0];
+  char buf[512];
+  auto cell = [&](int value, int base, bool first) {
+    if (first || value == base) return std::to_string(value);
+    return std::to_string(value) + " (" + (value > base ? "+" : "") + std::to_string(value - base) + ")";
+  };
+  for (size_t v = 0; v < counts.size(); ++v) {
+    const AblationCounts& c = counts[v];
+    const bool first = v == 0;
+    std::snprintf(buf, sizeof buf, "| %s | `%s` | %s | %s | %s | %s | %s | %s | %s | %s | %s | %d | %d | %.1f | %.2f |\n",
+                  variants[v].name.c_str(), variants[v].off.c_str(), cell(c.found_3d, b.found_3d, first).c_str(),
+                  cell(c.pose_ok_3d, b.pose_ok_3d, first).c_str(), cell(c.wrong_3d, b.wrong_3d, first).c_str(),
+                  cell(c.found_2d, b.found_2d, first).c_str(), cell(c.within_3px_2d, b.within_3px_2d, first).c_str(),
+                  cell(c.wrong_2d, b.wrong_2d, first).c_str(),
+                  cell(c.pairs_within_3px, b.pairs_within_3px, first).c_str(),
+                  cell(c.pairs_wrong, b.pairs_wrong, first).c_str(), cell(c.clutter_false, b.clutter_false, first).c_str(),
+                  c.changed, c.moved, c.median_ms, c.mean_checks_ms);
+    s += buf;
+  }
+  char tail[256];
+  std::snprintf(tail, sizeof tail,
+                "\n%d realistic frames (3D and 2D-only each), %d photo pairs, %d clutter frames.\n", b.frames_3d,
+                b.pairs, b.clutter_frames);
+  return s + tail;
+}
+
+}  // namespace refgrasp::eval
