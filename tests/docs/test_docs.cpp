@@ -188,20 +188,55 @@ TEST(Docs, EveryRelativeLinkResolves) {
   EXPECT_TRUE(broken.empty()) << broken.size() << " broken link(s):" << joined(broken);
 }
 
+namespace {
+
+// Text that belongs in docs/results.md (dated measurements) or in commit messages (history):
+// a date, an issue number, the data splits a figure was developed or reported on. The patterns
+// are written so that this file does not match them itself.
+const std::vector<std::pair<std::string, std::regex>>& datedText() {
+  static const std::vector<std::pair<std::string, std::regex>> dated = {
+      {"a date", std::regex("20[0-9]{2}-[0-9]{2}-[0-9]{2}")},
+      {"an issue number", std::regex("issue [0-9]+", std::regex::icase)},
+      {"a tuning split", std::regex("develop[m]ent (seed|split)", std::regex::icase)},
+      {"the reported split", std::regex("repor[t] split", std::regex::icase)},
+  };
+  return dated;
+}
+
+std::vector<std::string> datedLines(const fs::path& file, const std::string& name) {
+  std::vector<std::string> found;
+  const std::vector<std::string> lines = readLines(file);
+  for (size_t n = 0; n < lines.size(); ++n)
+    for (const auto& [what, re] : datedText())
+      if (std::regex_search(lines[n], re)) found.push_back(name + ":" + std::to_string(n + 1) + ": " + what);
+  return found;
+}
+
+}  // namespace
+
 TEST(Docs, TheReadmeIsAFrontPage) {
   const std::vector<std::string> lines = readLines(kSource / "README.md");
   EXPECT_LE(lines.size(), 250u) << "README.md is a front page; the rest belongs in docs/";
-  const std::vector<std::pair<std::string, std::regex>> dated = {
-      {"a date", std::regex("20[0-9]{2}-[0-9]{2}-[0-9]{2}")},
-      {"an issue number", std::regex("issue [0-9]+", std::regex::icase)},
-      {"a development seed or split", std::regex("development (seed|split)", std::regex::icase)},
-      {"the report split", std::regex("report split", std::regex::icase)},
-  };
-  std::vector<std::string> found;
-  for (size_t n = 0; n < lines.size(); ++n)
-    for (const auto& [what, re] : dated)
-      if (std::regex_search(lines[n], re)) found.push_back("README.md:" + std::to_string(n + 1) + ": " + what);
+  const std::vector<std::string> found = datedLines(kSource / "README.md", "README.md");
   EXPECT_TRUE(found.empty()) << "dated text belongs in docs/results.md:" << joined(found);
+}
+
+// Comments in src/, app/ and tests/ state meaning; dates, issue numbers and the data a figure was
+// tuned on belong in docs/results.md and the commit messages.
+TEST(Docs, SourcesCarryNoDatesIssueNumbersOrTuningSplits) {
+  std::vector<std::string> found;
+  int files = 0;
+  for (const char* room : {"src", "app", "tests"})
+    for (const auto& entry : fs::recursive_directory_iterator(kSource / room)) {
+      if (!entry.is_regular_file()) continue;
+      const std::string ext = entry.path().extension().string();
+      if (ext != ".h" && ext != ".cpp" && ext != ".c" && ext != ".inl" && ext != ".sh" && ext != ".txt") continue;
+      ++files;
+      const std::vector<std::string> f = datedLines(entry.path(), fs::relative(entry.path(), kSource).string());
+      found.insert(found.end(), f.begin(), f.end());
+    }
+  EXPECT_GT(files, 100) << "the source tree was not found";
+  EXPECT_TRUE(found.empty()) << found.size() << " line(s):" << joined(found);
 }
 
 // The checker itself, on a small tree: it must see a missing file, a missing anchor and a link
