@@ -15,7 +15,7 @@ using detector::Features;
 using detector::SiftImplementation;
 using detector::SiftOptions;
 
-// Counterpart bars (the issue's: within 0.5 px, 5 % in size, 5 degrees).
+// A counterpart: within 0.5 px, 5 % in size, 5 degrees.
 constexpr double kPosPx = 0.5, kSizeFrac = 0.05, kAngleDeg = 5;
 
 double angleDiff(float a, float b) {

@@ -178,7 +178,7 @@ TEST(ShippedObjects, EveryDefinitionLoadsWith3dCorners) {
     EXPECT_EQ(m.name, e.path().stem().string());
     ASSERT_TRUE(m.has3d()) << e.path();
     // Shipped objects are 0.2 m wide textures: corners 0.2 m apart in x. The photo_* targets of
-    // scripts/make_grasp_scenarios.py have the grasp issue's face widths of 16-22 cm.
+    // scripts/make_grasp_scenarios.py have faces 16-22 cm wide.
     const double width = (m.target->corners_o[1] - m.target->corners_o[0]).norm();
     if (e.path().stem().string().rfind("photo_", 0) == 0) {
       EXPECT_GE(width, 0.16 - 1e-6) << e.path();

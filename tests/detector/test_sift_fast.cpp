@@ -21,7 +21,7 @@
 namespace refgrasp::detector {
 namespace {
 
-// Equivalence bars (the issue's: >= 97 % of cv::SIFT's keypoints within 0.5 px, 5 %, 5 degrees;
+// Equivalence bars (the extractor must keep >= 97 % of cv::SIFT's keypoints within 0.5 px, 5 %, 5 degrees;
 // the counterparts: eval::siftCounterparts).
 constexpr double kMinRecall = 0.97, kMinPrecision = 0.97;
 // Descriptors are integer vectors of L2 norm ~512. Matched pairs: the median distance is 0 and
