@@ -48,58 +48,66 @@ void VerifyOptions::check() const {
                   "VerifyOptions.periodic_min_strong_cells", "must be in [0, 9]");
 }
 
-VerifyResult verifyInstance(const std::vector<cv::Mat>& pyr, const std::vector<Eigen::Vector2d>& pattern,
-                            const cv::Mat& scene, const Intrinsics& cam, const Eigen::Matrix3d& H,
-                            const VerifyOptions& opt) {
-  VerifyResult res;
-  if (pyr.empty() || scene.empty() || scene.type() != CV_8UC1 || pattern.size() < 3 || !H.allFinite()) return res;
-  // Pattern in the scene (undistorted px): in front of the vanishing line, its area.
-  auto project = [&](const std::vector<Eigen::Vector2d>& poly, std::vector<Eigen::Vector2d>* proj) {
-    proj->clear();
-    double w0 = 0;
-    for (const auto& p : poly) {
-      const Eigen::Vector3d q = H * p.homogeneous();
-      if (proj->empty()) w0 = q.z();
-      if (!(q.z() * w0 > 0)) return false;
-      proj->push_back(q.hnormalized());
-    }
-    return true;
-  };
-  std::vector<Eigen::Vector2d> proj;
-  if (!project(pattern, &proj)) return res;
-  const double a_pattern = std::abs(signedArea(proj));
-  if (!(a_pattern > 4) || !std::isfinite(a_pattern)) return res;
-  // The part of the pattern in view (the scene's frame mapped back into the reference): a
-  // pattern seen larger than the frame is compared where it is seen. It must cover a quarter of
-  // the pattern, or of the frame when the pattern is larger.
-  std::vector<Eigen::Vector2d> polygon = pattern;
-  {
-    std::vector<Eigen::Vector2d> frame = {{-0.5, -0.5}, {scene.cols - 0.5, -0.5}, {scene.cols - 0.5, scene.rows - 0.5},
-                                          {-0.5, scene.rows - 0.5}};
-    if (cam.hasDistortion())
-      for (auto& f : frame) f = cam.undistortPixel(f);
-    const Eigen::Matrix3d Hi = H.inverse();
-    std::vector<Eigen::Vector2d> frame_ref;
-    bool in_front = Hi.allFinite();
-    const double w_pattern = (H * pattern[0].homogeneous()).z();
-    for (const auto& f : frame) {
-      const Eigen::Vector3d r = Hi * f.homogeneous();
-      // The frame's corner must see the pattern's plane (H r = f exactly, so H maps r / r_z with w = 1 / r_z).
-      in_front = in_front && r.z() * w_pattern > 0 && std::abs(r.z()) > 1e-12;
-      frame_ref.push_back(r.hnormalized());
-    }
-    if (in_front) {
-      polygon = clipToConvex(pattern, frame_ref);
-      std::vector<Eigen::Vector2d> seen;
-      if (polygon.size() < 3 || !project(polygon, &seen)) return res;
-      const double a_seen = std::abs(signedArea(seen));
-      if (!(a_seen >= 0.25 * std::min(a_pattern, static_cast<double>(scene.total())))) return res;
-    }
+namespace {
+
+// The polygon mapped by H (undistorted scene px); false when a vertex is not on the side of the
+// vanishing line the first one is on.
+bool projectPolygon(const Eigen::Matrix3d& H, const std::vector<Eigen::Vector2d>& poly,
+                    std::vector<Eigen::Vector2d>* proj) {
+  proj->clear();
+  double w0 = 0;
+  for (const auto& p : poly) {
+    const Eigen::Vector3d q = H * p.homogeneous();
+    if (proj->empty()) w0 = q.z();
+    if (!(q.z() * w0 > 0)) return false;
+    proj->push_back(q.hnormalized());
   }
+  return true;
+}
+
+// The part of the pattern in view (the scene's frame mapped back into the reference, when the
+// frame lies wholly on the plane's side of the vanishing line): a pattern seen larger than the
+// frame is compared where it is seen. It must cover a quarter of the pattern, or of the frame
+// when the pattern is larger. a_pattern: the whole pattern's projected area. False: not
+// computable.
+bool partInView(const std::vector<Eigen::Vector2d>& pattern, const Eigen::Matrix3d& H, const cv::Mat& scene,
+                const Intrinsics& cam, double a_pattern, std::vector<Eigen::Vector2d>* polygon) {
+  *polygon = pattern;
+  std::vector<Eigen::Vector2d> frame = {{-0.5, -0.5}, {scene.cols - 0.5, -0.5}, {scene.cols - 0.5, scene.rows - 0.5},
+                                        {-0.5, scene.rows - 0.5}};
+  if (cam.hasDistortion())
+    for (auto& f : frame) f = cam.undistortPixel(f);
+  const Eigen::Matrix3d Hi = H.inverse();
+  std::vector<Eigen::Vector2d> frame_ref;
+  bool in_front = Hi.allFinite();
+  const double w_pattern = (H * pattern[0].homogeneous()).z();
+  for (const auto& f : frame) {
+    const Eigen::Vector3d r = Hi * f.homogeneous();
+    // The frame's corner must see the pattern's plane (H r = f exactly, so H maps r / r_z with w = 1 / r_z).
+    in_front = in_front && r.z() * w_pattern > 0 && std::abs(r.z()) > 1e-12;
+    frame_ref.push_back(r.hnormalized());
+  }
+  if (!in_front) return true;
+  *polygon = clipToConvex(pattern, frame_ref);
   std::vector<Eigen::Vector2d> seen;
-  if (!project(polygon, &seen)) return res;
-  const double a_ref = std::abs(signedArea(polygon)), a_scene = std::abs(signedArea(seen));
-  if (!(a_ref > 0) || !(a_scene > 4) || !std::isfinite(a_scene)) return res;
+  if (polygon->size() < 3 || !projectPolygon(H, *polygon, &seen)) return false;
+  const double a_seen = std::abs(signedArea(seen));
+  return a_seen >= 0.25 * std::min(a_pattern, static_cast<double>(scene.total()));
+}
+
+// Both sides on the comparison grid: the reference (a) and the scene (b), smoothed (CV_32F), and
+// the grid pixels compared (mask: inside the polygon, one grid pixel in from its outline, and
+// landing in the scene image).
+struct Grids {
+  cv::Mat a, b, mask;
+  int width = 0, height = 0;
+  int in_polygon = 0;  ///< grid pixels inside the polygon (before the erosion and the image test)
+};
+
+// False when the scene's neighbourhood of the pattern is empty.
+bool sampleGrids(const std::vector<cv::Mat>& pyr, const std::vector<Eigen::Vector2d>& polygon, const cv::Mat& scene,
+                 const Intrinsics& cam, const Eigen::Matrix3d& H, double a_ref, double a_scene,
+                 const VerifyOptions& opt, Grids* g) {
   Eigen::Vector2d lo = polygon[0], hi = polygon[0];
   for (const auto& p : polygon) {
     lo = lo.cwiseMin(p);
@@ -145,7 +153,7 @@ VerifyResult verifyInstance(const std::vector<cv::Mat>& pyr, const std::vector<E
   const cv::Rect crop = cv::Rect(cv::Point(static_cast<int>(std::floor(slo.x())) - pad, static_cast<int>(std::floor(slo.y())) - pad),
                                  cv::Point(static_cast<int>(std::ceil(shi.x())) + pad + 1, static_cast<int>(std::ceil(shi.y())) + pad + 1)) &
                         cv::Rect(0, 0, scene.cols, scene.rows);
-  if (crop.area() <= 0) return res;
+  if (crop.area() <= 0) return false;
   lowpass(scene(crop), scene_step, &sc);
   smx -= static_cast<float>(crop.x);
   smy -= static_cast<float>(crop.y);
@@ -156,40 +164,65 @@ VerifyResult verifyInstance(const std::vector<cv::Mat>& pyr, const std::vector<E
   cv::remap(cv::Mat(sc.size(), CV_8UC1, cv::Scalar(255)), inside, smx, smy, cv::INTER_NEAREST, cv::BORDER_CONSTANT,
             cv::Scalar(0));
   // The polygon on the grid, one grid pixel inside its outline.
-  cv::Mat mask = cv::Mat::zeros(th, tw, CV_8UC1);
+  g->mask = cv::Mat::zeros(th, tw, CV_8UC1);
   std::vector<cv::Point> poly;
   for (const auto& p : polygon)
     poly.emplace_back(cv::Point(static_cast<int>(std::lround((p.x() - lo.x()) * s)), static_cast<int>(std::lround((p.y() - lo.y()) * s))));
-  cv::fillPoly(mask, std::vector<std::vector<cv::Point>>{poly}, cv::Scalar(255));
-  const int in_polygon = cv::countNonZero(mask);
-  cv::erode(mask, mask, cv::Mat());
-  mask &= inside;
-  const int n = cv::countNonZero(mask);
-  res.visible_fraction = in_polygon > 0 ? static_cast<double>(n) / in_polygon : 0;
+  cv::fillPoly(g->mask, std::vector<std::vector<cv::Point>>{poly}, cv::Scalar(255));
+  g->in_polygon = cv::countNonZero(g->mask);
+  cv::erode(g->mask, g->mask, cv::Mat());
+  g->mask &= inside;
+  a.convertTo(g->a, CV_32F);
+  b.convertTo(g->b, CV_32F);
+  cv::GaussianBlur(g->a, g->a, cv::Size(3, 3), 0.7);
+  cv::GaussianBlur(g->b, g->b, cv::Size(3, 3), 0.7);
+  g->width = tw;
+  g->height = th;
+  return true;
+}
+
+// Zero-mean NCC over a box of the grid; NaN when it is flat (std below 1 gray level) or small.
+double maskedNcc(const Grids& g, const cv::Rect& box) {
+  const double ma = cv::mean(g.a(box), g.mask(box))[0], mb = cv::mean(g.b(box), g.mask(box))[0];
+  double sab = 0, saa = 0, sbb = 0;
+  int k = 0;
+  for (int v = box.y; v < box.y + box.height; ++v)
+    for (int u = box.x; u < box.x + box.width; ++u) {
+      if (!g.mask.at<uchar>(v, u)) continue;
+      const double x = g.a.at<float>(v, u) - ma, y = g.b.at<float>(v, u) - mb;
+      sab += x * y;
+      saa += x * x;
+      sbb += y * y;
+      ++k;
+    }
+  if (k < 12 || !(saa > 1.0 * k) || !(sbb > 1.0 * k)) return std::nan("");
+  return sab / std::sqrt(saa * sbb);
+}
+
+}  // namespace
+
+VerifyResult verifyInstance(const std::vector<cv::Mat>& pyr, const std::vector<Eigen::Vector2d>& pattern,
+                            const cv::Mat& scene, const Intrinsics& cam, const Eigen::Matrix3d& H,
+                            const VerifyOptions& opt) {
+  VerifyResult res;
+  if (pyr.empty() || scene.empty() || scene.type() != CV_8UC1 || pattern.size() < 3 || !H.allFinite()) return res;
+  // Pattern in the scene (undistorted px): in front of the vanishing line, its area.
+  std::vector<Eigen::Vector2d> proj;
+  if (!projectPolygon(H, pattern, &proj)) return res;
+  const double a_pattern = std::abs(signedArea(proj));
+  if (!(a_pattern > 4) || !std::isfinite(a_pattern)) return res;
+  std::vector<Eigen::Vector2d> polygon;
+  if (!partInView(pattern, H, scene, cam, a_pattern, &polygon)) return res;
+  std::vector<Eigen::Vector2d> seen;
+  if (!projectPolygon(H, polygon, &seen)) return res;
+  const double a_ref = std::abs(signedArea(polygon)), a_scene = std::abs(signedArea(seen));
+  if (!(a_ref > 0) || !(a_scene > 4) || !std::isfinite(a_scene)) return res;
+  Grids g;
+  if (!sampleGrids(pyr, polygon, scene, cam, H, a_ref, a_scene, opt, &g)) return res;
+  const int n = cv::countNonZero(g.mask);
+  res.visible_fraction = g.in_polygon > 0 ? static_cast<double>(n) / g.in_polygon : 0;
   if (n < 12 || res.visible_fraction < 0.25) return res;
-  cv::Mat fa, fb;
-  a.convertTo(fa, CV_32F);
-  b.convertTo(fb, CV_32F);
-  cv::GaussianBlur(fa, fa, cv::Size(3, 3), 0.7);
-  cv::GaussianBlur(fb, fb, cv::Size(3, 3), 0.7);
-  // Zero-mean NCC over a box of the grid; NaN when it is flat (std below 1 gray level) or small.
-  auto ncc = [&](const cv::Rect& box) {
-    const double ma = cv::mean(fa(box), mask(box))[0], mb = cv::mean(fb(box), mask(box))[0];
-    double sab = 0, saa = 0, sbb = 0;
-    int k = 0;
-    for (int v = box.y; v < box.y + box.height; ++v)
-      for (int u = box.x; u < box.x + box.width; ++u) {
-        if (!mask.at<uchar>(v, u)) continue;
-        const double x = fa.at<float>(v, u) - ma, y = fb.at<float>(v, u) - mb;
-        sab += x * y;
-        saa += x * x;
-        sbb += y * y;
-        ++k;
-      }
-    if (k < 12 || !(saa > 1.0 * k) || !(sbb > 1.0 * k)) return std::nan("");
-    return sab / std::sqrt(saa * sbb);
-  };
-  res.correlation = ncc(cv::Rect(0, 0, tw, th));
+  res.correlation = maskedNcc(g, cv::Rect(0, 0, g.width, g.height));
   if (std::isnan(res.correlation)) {
     res.correlation = 0;
     return res;
@@ -198,11 +231,12 @@ VerifyResult verifyInstance(const std::vector<cv::Mat>& pyr, const std::vector<E
   // half must agree on their own, and min_strong_cells strongly. A shared logo or word (a
   // sibling product), or a repeated pattern aligned one period off, agrees in part of the
   // pattern, not over most of it.
+  const int tw = g.width, th = g.height;
   int cells = 0, agreeing = 0, strong = 0;
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) {
       const cv::Rect cell(j * tw / 3, i * th / 3, (j + 1) * tw / 3 - j * tw / 3, (i + 1) * th / 3 - i * th / 3);
-      const double c = ncc(cell);
+      const double c = maskedNcc(g, cell);
       if (std::isnan(c)) continue;
       ++cells;
       agreeing += c >= opt.min_correlation;

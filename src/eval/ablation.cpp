@@ -74,7 +74,7 @@ struct ItemOutcome {
   double ms = 0, checks_ms = 0;
 };
 
-enum class ItemKind { k3d, k2d, kPair, kClutter };
+enum class ItemKind { k3d, kPair, kClutter };
 
 // A frame or pair to evaluate with every variant.
 struct Item {
@@ -112,6 +112,148 @@ ItemOutcome runRealistic(const detector::Detector& det, const RealisticSet& set,
   return o;
 }
 
+// Everything the items refer to: the sets of every seed, the pairs, the clutter objects.
+struct AblationWork {
+  std::vector<std::unique_ptr<RealisticSet>> sets;
+  std::vector<SetObject> clutter_objects;
+  std::vector<PairSpec> pairs;
+  std::vector<Item> items;
+};
+
+AblationWork prepareWork(const AblationData& data) {
+  AblationWork w;
+  for (const uint64_t seed : data.seeds)
+    for (const RealisticSetSpec& spec : realisticSets(seed, data.frames_per_set))
+      w.sets.push_back(std::make_unique<RealisticSet>(spec));
+  for (size_t s = 0; s < std::min<size_t>(w.sets.size(), 3); ++s)
+    if (w.sets[s]->spec().name != "far_oblique")
+      for (const SetObject& o : w.sets[s]->objects()) w.clutter_objects.push_back(o);
+  const std::vector<std::string> textures = pairTextures();
+  for (int k = 0; k < data.pair_seeds; ++k)
+    for (int f = 0; f < kPairFamilies; ++f)
+      for (int l = 0; l < kPairLevels; ++l)
+        for (size_t t = 0; t < textures.size(); ++t)
+          w.pairs.push_back({textures[t], static_cast<PairFamily>(f), l,
+                             pairSeed(data.pair_first_seed + static_cast<uint64_t>(k), static_cast<int>(t))});
+  for (size_t s = 0; s < w.sets.size(); ++s)
+    for (int i = 0; i < w.sets[s]->frames(); ++i) w.items.push_back({ItemKind::k3d, static_cast<int>(s), i});
+  for (size_t p = 0; p < w.pairs.size(); ++p) w.items.push_back({ItemKind::kPair, 0, static_cast<int>(p)});
+  for (int i = 0; i < data.clutter_frames; ++i) w.items.push_back({ItemKind::kClutter, 0, i});
+  return w;
+}
+
+// Item k with every variant (its realistic frame also 2D-only into *out2d when data.two_d).
+void evaluateItem(const AblationWork& w, size_t k, const std::vector<detector::DetectorOptions>& options,
+                  const AblationData& data, WorkerDetectors* dets, std::vector<ItemOutcome>* out,
+                  std::vector<ItemOutcome>* out2d) {
+  const Item& it = w.items[k];
+  const size_t n = options.size();
+  out->assign(n, ItemOutcome{});
+  if (it.kind == ItemKind::k3d) {
+    const RealisticSet& set = *w.sets[static_cast<size_t>(it.set)];
+    const SetFrame f = set.frame(it.frame);
+    for (int pass = 0; pass < (data.two_d ? 2 : 1); ++pass) {
+      const bool two_d = pass == 1;
+      std::vector<ItemOutcome>& dst = two_d ? *out2d : *out;
+      dst.resize(n);
+      // Variants in an order rotated per frame: each is first (cache-cold) equally often.
+      for (size_t r = 0; r < n; ++r) {
+        const size_t v = (r + k) % n;
+        auto& det = dets->per_object[{static_cast<int>(v), it.set, f.object, two_d}];
+        if (!det) {
+          det = std::make_unique<detector::Detector>(options[v]);
+          const detector::ObjectModel& m = set.objects()[f.object].model;
+          det->addObject(two_d ? twoDOnly(m) : m);
+        }
+        dst[v] = runRealistic(*det, set, f, two_d);
+      }
+    }
+  } else if (it.kind == ItemKind::kPair) {
+    const PairSpec& ps = w.pairs[static_cast<size_t>(it.frame)];
+    const ViewPair p = makeViewPair(ps.texture, ps.family, ps.level, ps.seed);
+    const detector::ObjectModel model = detector::makeObjectModel(ps.texture, p.reference, std::nullopt, std::nullopt);
+    for (size_t v = 0; v < n; ++v) {
+      detector::Detector det(options[v]);
+      det.addObject(model);
+      const detector::DetectionResult res = det.detect(p.scene, p.camera);
+      if (const auto d = res.find(0)) {
+        const double err = worstCornerError(p, d->H);
+        (*out)[v].reported = true;
+        (*out)[v].within = err <= 3;
+        (*out)[v].found = err <= 30;
+        (*out)[v].wrong = err > 30;
+        (*out)[v].H = d->H;
+      }
+    }
+  } else {
+    const ClutterFrame c = clutterFrame(w.clutter_objects, data.seeds.front(), it.frame);
+    for (size_t v = 0; v < n; ++v) {
+      auto& det = dets->clutter[static_cast<int>(v)];
+      if (!det) {
+        det = std::make_unique<detector::Detector>(options[v]);
+        for (const SetObject& o : w.clutter_objects) det->addObject(o.model);
+      }
+      const detector::DetectionResult res = det->detect(c.image, c.camera);
+      for (const auto& d : res.detections) (*out)[v].false_detections += d.found;
+      (*out)[v].reported = (*out)[v].false_detections > 0;
+    }
+  }
+}
+
+bool outcomeDiffers(const ItemOutcome& a, const ItemOutcome& b) {
+  return a.reported != b.reported || a.found != b.found || a.pose_ok != b.pose_ok || a.within != b.within ||
+         a.wrong != b.wrong || a.false_detections != b.false_detections;
+}
+
+bool reportMoved(const ItemOutcome& a, const ItemOutcome& b) {
+  return a.reported && b.reported && (a.H - b.H).cwiseAbs().maxCoeff() > 1e-9 * std::max(1.0, b.H.cwiseAbs().maxCoeff());
+}
+
+// The counts per variant; "changed" and "moved" against variant 0.
+std::vector<AblationCounts> tallyAblation(const std::vector<Item>& items,
+                                          const std::vector<std::vector<ItemOutcome>>& results,
+                                          const std::vector<std::vector<ItemOutcome>>& results2d, size_t variants) {
+  std::vector<AblationCounts> counts(variants);
+  std::vector<std::vector<double>> ms(variants);
+  std::vector<double> checks_ms(variants, 0);
+  for (size_t k = 0; k < items.size(); ++k)
+    for (size_t v = 0; v < variants; ++v) {
+      AblationCounts& c = counts[v];
+      const ItemOutcome& o = results[k][v];
+      c.changed += outcomeDiffers(o, results[k][0]);
+      c.moved += reportMoved(o, results[k][0]);
+      if (items[k].kind == ItemKind::k3d) {
+        ++c.frames_3d;
+        c.found_3d += o.found;
+        c.pose_ok_3d += o.pose_ok;
+        c.wrong_3d += o.wrong;
+        ms[v].push_back(o.ms);
+        checks_ms[v] += o.checks_ms;
+        if (!results2d[k].empty()) {
+          const ItemOutcome& o2 = results2d[k][v];
+          ++c.frames_2d;
+          c.found_2d += o2.found;
+          c.within_3px_2d += o2.within;
+          c.wrong_2d += o2.wrong;
+          c.changed += outcomeDiffers(o2, results2d[k][0]);
+          c.moved += reportMoved(o2, results2d[k][0]);
+        }
+      } else if (items[k].kind == ItemKind::kPair) {
+        ++c.pairs;
+        c.pairs_within_3px += o.within;
+        c.pairs_wrong += o.wrong;
+      } else if (items[k].kind == ItemKind::kClutter) {
+        ++c.clutter_frames;
+        c.clutter_false += o.false_detections;
+      }
+    }
+  for (size_t v = 0; v < variants; ++v) {
+    counts[v].median_ms = ms[v].empty() ? 0 : median(ms[v]);
+    counts[v].mean_checks_ms = ms[v].empty() ? 0 : checks_ms[v] / static_cast<double>(ms[v].size());
+  }
+  return counts;
+}
+
 }  // namespace
 
 std::vector<AblationCounts> runAblation(const std::vector<AblationVariant>& variants, const AblationData& data,
@@ -125,159 +267,33 @@ std::vector<AblationCounts> runAblation(const std::vector<AblationVariant>& vari
     options[v].sift.threads = 1;
     options[v].check();
   }
-  // The data: every set of every seed, the pairs, the clutter objects.
-  std::vector<std::unique_ptr<RealisticSet>> sets;
-  for (const uint64_t seed : data.seeds)
-    for (const RealisticSetSpec& spec : realisticSets(seed, data.frames_per_set))
-      sets.push_back(std::make_unique<RealisticSet>(spec));
-  std::vector<SetObject> clutter_objects;
-  for (size_t s = 0; s < std::min<size_t>(sets.size(), 3); ++s)
-    if (sets[s]->spec().name != "far_oblique")
-      for (const SetObject& o : sets[s]->objects()) clutter_objects.push_back(o);
-  std::vector<PairSpec> pairs;
-  const std::vector<std::string> textures = pairTextures();
-  for (int k = 0; k < data.pair_seeds; ++k)
-    for (int f = 0; f < kPairFamilies; ++f)
-      for (int l = 0; l < kPairLevels; ++l)
-        for (size_t t = 0; t < textures.size(); ++t)
-          pairs.push_back({textures[t], static_cast<PairFamily>(f), l,
-                           pairSeed(data.pair_first_seed + static_cast<uint64_t>(k), static_cast<int>(t))});
-  std::vector<Item> items;
-  for (size_t s = 0; s < sets.size(); ++s)
-    for (int i = 0; i < sets[s]->frames(); ++i) items.push_back({ItemKind::k3d, static_cast<int>(s), i});
-  for (size_t p = 0; p < pairs.size(); ++p) items.push_back({ItemKind::kPair, 0, static_cast<int>(p)});
-  for (int i = 0; i < data.clutter_frames; ++i) items.push_back({ItemKind::kClutter, 0, i});
-
-  // results[item][variant]; a realistic frame's 2D run goes to results2d.
-  std::vector<std::vector<ItemOutcome>> results(items.size()), results2d(items.size());
+  const AblationWork w = prepareWork(data);
+  // results[item][variant]; a realistic frame's 2D-only run goes to results2d.
+  std::vector<std::vector<ItemOutcome>> results(w.items.size()), results2d(w.items.size());
   std::atomic<size_t> next{0};
   std::atomic<int> done{0};
   std::mutex progress_mu;
   auto work = [&] {
     WorkerDetectors dets;
     int current_set = -1;
-    for (size_t k = next++; k < items.size(); k = next++) {
-      const Item& it = items[k];
+    for (size_t k = next++; k < w.items.size(); k = next++) {
+      const Item& it = w.items[k];
       if (it.kind == ItemKind::k3d && it.set != current_set) {  // a new set: the last one's detectors go
         dets.per_object.clear();
         current_set = it.set;
       }
-      std::vector<ItemOutcome> out(variants.size()), out2d;
-      if (it.kind == ItemKind::k3d) {
-        const RealisticSet& set = *sets[static_cast<size_t>(it.set)];
-        const SetFrame f = set.frame(it.frame);
-        for (int pass = 0; pass < (data.two_d ? 2 : 1); ++pass) {
-          const bool two_d = pass == 1;
-          std::vector<ItemOutcome>& dst = two_d ? out2d : out;
-          dst.resize(variants.size());
-          // Variants in an order rotated per frame: each is first (cache-cold) equally often.
-          for (size_t r = 0; r < variants.size(); ++r) {
-            const size_t v = (r + k) % variants.size();
-            auto& det = dets.per_object[{static_cast<int>(v), it.set, f.object, two_d}];
-            if (!det) {
-              det = std::make_unique<detector::Detector>(options[v]);
-              const detector::ObjectModel& m = set.objects()[f.object].model;
-              det->addObject(two_d ? twoDOnly(m) : m);
-            }
-            dst[v] = runRealistic(*det, set, f, two_d);
-          }
-        }
-      } else if (it.kind == ItemKind::kPair) {
-        const PairSpec& ps = pairs[static_cast<size_t>(it.frame)];
-        const ViewPair p = makeViewPair(ps.texture, ps.family, ps.level, ps.seed);
-        const detector::ObjectModel model = detector::makeObjectModel(ps.texture, p.reference, std::nullopt, std::nullopt);
-        for (size_t v = 0; v < variants.size(); ++v) {
-          detector::Detector det(options[v]);
-          det.addObject(model);
-          const detector::DetectionResult res = det.detect(p.scene, p.camera);
-          if (const auto d = res.find(0)) {
-            const double err = worstCornerError(p, d->H);
-            out[v].reported = true;
-            out[v].within = err <= 3;
-            out[v].found = err <= 30;
-            out[v].wrong = err > 30;
-            out[v].H = d->H;
-          }
-        }
-      } else {
-        const ClutterFrame c = clutterFrame(clutter_objects, data.seeds.front(), it.frame);
-        for (size_t v = 0; v < variants.size(); ++v) {
-          auto& det = dets.clutter[static_cast<int>(v)];
-          if (!det) {
-            det = std::make_unique<detector::Detector>(options[v]);
-            for (const SetObject& o : clutter_objects) det->addObject(o.model);
-          }
-          const detector::DetectionResult res = det->detect(c.image, c.camera);
-          for (const auto& d : res.detections) out[v].false_detections += d.found;
-          out[v].reported = out[v].false_detections > 0;
-        }
-      }
-      results[k] = std::move(out);
-      results2d[k] = std::move(out2d);
+      evaluateItem(w, k, options, data, &dets, &results[k], &results2d[k]);
       const int n = ++done;
       if (progress) {
         std::lock_guard<std::mutex> lock(progress_mu);
-        progress(n, static_cast<int>(items.size()));
+        progress(n, static_cast<int>(w.items.size()));
       }
     }
   };
   std::vector<std::thread> pool;
   for (int t = 0; t < threads; ++t) pool.emplace_back(work);
   for (auto& t : pool) t.join();
-
-  // Tallies; "changed" and "moved" against variant 0.
-  std::vector<AblationCounts> counts(variants.size());
-  std::vector<std::vector<double>> ms(variants.size());
-  std::vector<double> checks_ms(variants.size(), 0);
-  auto differs = [](const ItemOutcome& a, const ItemOutcome& b) {
-    return a.reported != b.reported || a.found != b.found || a.pose_ok != b.pose_ok || a.within != b.within ||
-           a.wrong != b.wrong || a.false_detections != b.false_detections;
-  };
-  auto moved = [](const ItemOutcome& a, const ItemOutcome& b) {
-    return a.reported && b.reported && (a.H - b.H).cwiseAbs().maxCoeff() > 1e-9 * std::max(1.0, b.H.cwiseAbs().maxCoeff());
-  };
-  for (size_t k = 0; k < items.size(); ++k)
-    for (size_t v = 0; v < variants.size(); ++v) {
-      AblationCounts& c = counts[v];
-      const ItemOutcome& o = results[k][v];
-      c.changed += differs(o, results[k][0]);
-      c.moved += moved(o, results[k][0]);
-      switch (items[k].kind) {
-        case ItemKind::k3d: {
-          ++c.frames_3d;
-          c.found_3d += o.found;
-          c.pose_ok_3d += o.pose_ok;
-          c.wrong_3d += o.wrong;
-          ms[v].push_back(o.ms);
-          checks_ms[v] += o.checks_ms;
-          if (!results2d[k].empty()) {
-            const ItemOutcome& o2 = results2d[k][v];
-            ++c.frames_2d;
-            c.found_2d += o2.found;
-            c.within_3px_2d += o2.within;
-            c.wrong_2d += o2.wrong;
-            c.changed += differs(o2, results2d[k][0]);
-            c.moved += moved(o2, results2d[k][0]);
-          }
-          break;
-        }
-        case ItemKind::k2d: break;
-        case ItemKind::kPair:
-          ++c.pairs;
-          c.pairs_within_3px += o.within;
-          c.pairs_wrong += o.wrong;
-          break;
-        case ItemKind::kClutter:
-          ++c.clutter_frames;
-          c.clutter_false += o.false_detections;
-          break;
-      }
-    }
-  for (size_t v = 0; v < variants.size(); ++v) {
-    counts[v].median_ms = ms[v].empty() ? 0 : median(ms[v]);
-    counts[v].mean_checks_ms = ms[v].empty() ? 0 : checks_ms[v] / static_cast<double>(ms[v].size());
-  }
-  return counts;
+  return tallyAblation(w.items, results, results2d, variants.size());
 }
 
 std::string formatAblation(const std::vector<AblationVariant>& variants, const std::vector<AblationCounts>& counts) {
