@@ -8,7 +8,6 @@
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
-#include <functional>
 #include <ctime>
 #include <memory>
 #include <numeric>
@@ -431,6 +430,443 @@ DoubledRow doubledRow(int m, int input_rows) {
   return {q, q, 1.f, 0.f};
 }
 
+/// Rows [y0, y1] and columns [x0, x1] (inclusive) of a layer.
+struct PatchArea {
+  int y0, y1, x0, x1;
+  int width() const { return x1 - x0 + 1; }
+  int height() const { return y1 - y0 + 1; }
+  bool contains(const PatchArea& a) const { return a.y0 >= y0 && a.y1 <= y1 && a.x0 >= x0 && a.x1 <= x1; }
+};
+
+/// One octave's sweep (sweepOctave): the layers' kernels, lags and halos, the rings of the rows in
+/// flight, what the sweep has made so far, the current strip's columns and the candidates waiting
+/// for their interpolation.
+class OctaveSweep {
+ public:
+  OctaveSweep(const si::Kernels& K, const Params& P, int o, const cv::Mat& input, const Octave* prev, Octave& oct,
+              int n_build, bool detect, const cv::Rect& test_area, Workspace& ws, std::vector<Extremum>* found,
+              int* far_steps, int* candidates);
+  /// The whole octave, strip by strip.
+  void run();
+
+ private:
+  static constexpr int kBlock = 4;         // rows per step: the column filter makes 4 rows from 2h + 4
+  static constexpr int kStripWidth = 512;  // columns per strip (the last one takes the rest)
+  // The interpolation runs kReach rows behind the extremum test, on DoG rows still held: a
+  // Newton step may move a candidate that far (columns too: the strips' halos grow by it).
+  static constexpr int kReach = 8;
+  static constexpr int kMaxMinRing = 8;
+
+  struct PatchMemo {
+    PatchArea area{0, -1, 0, -1};
+    std::vector<float> v;
+  };
+
+  void planLayers();
+  void placeLayerRings();
+  void placeDetectionRings();
+  float* layerRow(int i, int y) const;
+  float* dogRow(int k, int y) const { return const_cast<float*>(view_.row(k, y)); }
+  float* maxMinRow(int k, int y, int which) const;
+  bool made(int i, int y1, int x1) const;
+  std::vector<float> exactPatch(int i, const PatchArea& a);
+  std::vector<float> doubledInputPatch(const PatchArea& a) const;
+  void blurPatch(const Kernel& k, const std::vector<float>& src, const PatchArea& source, const PatchArea& a,
+                 std::vector<float>& out) const;
+  void exactDogCube(int layer, int r, int c, DogCube* cube);
+  void beginStrip(int strip, int n_strips);
+  const float* sourceRow(int i, int m);
+  void makeBlock(int i, int step);
+  void subsampleBlock(int i, int y0, int y1);
+  void detectBlock(int step);
+  void makeDogRows(int y0, int y1);
+  void testRows(int y1);
+  void interpolateCandidates(int y1);
+
+  const si::Kernels& K_;
+  const Params& P_;
+  const int o_;
+  const cv::Mat& input_;
+  const Octave* prev_;
+  Octave& oct_;
+  const bool detect_;
+  const cv::Rect test_area_;
+  Workspace& ws_;
+  std::vector<Extremum>* found_;
+  int* far_steps_;
+  int* candidates_;
+  const int W_, H_, S_;
+  const int L_;  ///< layers built
+  const float thr_;
+
+  // Layer i makes block b - lag[i] at step b: by then layer i-1 has rows up to its last row + h_i.
+  std::vector<const Kernel*> kern_;  ///< layer i blurs layer i - 1 by kern_[i]; null: subsampled
+  std::vector<int> lag_, halo_;
+  int max_h_ = 0;
+  /// Per layer: ring_size_ rows of the row filter's output, then (layers not stored) the layer's
+  /// own rows, a ring of keep_ rows; at ring_off_ in rings_.
+  std::vector<int> ring_size_, keep_;
+  std::vector<size_t> ring_off_;
+  float* rings_ = nullptr;
+  std::vector<const float*> rows_;  ///< the column filter's input rows
+  // The doubled input rows, blended and padded for the init blur (octave 0 only).
+  int up_pad_ = 0;
+  float* up_row_ = nullptr;
+  float* blend_ = nullptr;
+
+  int n_dog_ = 0;  ///< DoG layers (0 without detection)
+  DogView view_;
+  float* maxmin_ = nullptr;
+  std::vector<Candidate>& pending_;  ///< this strip's candidates, interpolated from next_pending_ on
+  size_t next_pending_ = 0;
+
+  // What the sweep has made of each stored layer so far in this call: every row of columns
+  // [0, done_cols[i]) (the strips before this one) and rows [0, done_rows[i]) of columns
+  // [0, strip_cols[i]). Anything else in the layer's buffer is a previous call's.
+  std::vector<int> done_cols_, done_rows_, strip_cols_;
+  // The last patch recomputed of each layer (values exact, so valid for the whole call): the
+  // patches of the lower layers made for a higher one serve the lower layers' own requests.
+  std::vector<PatchMemo> memo_;
+
+  // The current strip: columns [c0_[i], c1_[i]) of layer i, rows of its row filter made so far.
+  std::vector<int> c0_, c1_, filled_;
+  int tested_ = 0;  ///< next row of the extremum test
+  int test_end_ = 0, tx0_ = 0, tx1_ = 0;
+  int dx0_ = 0, dx1_ = 0;  ///< the DoG's columns
+};
+
+OctaveSweep::OctaveSweep(const si::Kernels& K, const Params& P, int o, const cv::Mat& input, const Octave* prev,
+                         Octave& oct, int n_build, bool detect, const cv::Rect& test_area, Workspace& ws,
+                         std::vector<Extremum>* found, int* far_steps, int* candidates)
+    : K_(K), P_(P), o_(o), input_(input), prev_(prev), oct_(oct), detect_(detect), test_area_(test_area), ws_(ws),
+      found_(found), far_steps_(far_steps), candidates_(candidates), W_(oct.w), H_(oct.h), S_(oct.stride),
+      L_(n_build), thr_(static_cast<float>(P.threshold)), pending_(ws.candidates), done_cols_(n_build, 0),
+      done_rows_(n_build, 0), strip_cols_(n_build, 0), memo_(n_build) {
+  planLayers();
+  placeLayerRings();
+  placeDetectionRings();
+}
+
+void OctaveSweep::planLayers() {
+  lag_.assign(L_, 0);
+  halo_.assign(L_, 0);
+  ring_size_.assign(L_, 0);
+  kern_.assign(L_, nullptr);
+  if (o_ == 0) kern_[0] = &P_.init;
+  for (int i = 1; i < L_; ++i) kern_[i] = &P_.kernels[i];
+  for (int i = 0; i < L_; ++i) {
+    const int h = kern_[i] ? kern_[i]->h : 0;
+    lag_[i] = (i == 0 ? 0 : lag_[i - 1]) + (h + kBlock - 1) / kBlock;
+    if (kern_[i]) ring_size_[i] = std::min(2 * h + kBlock, H_);
+    max_h_ = std::max(max_h_, h);
+  }
+  for (int i = L_ - 2; i >= 0; --i) halo_[i] = halo_[i + 1] + kern_[i + 1]->h;
+  if (detect_)
+    for (int& v : halo_) v += 1 + kReach;
+}
+
+void OctaveSweep::placeLayerRings() {
+  // Rows of the layers not stored: a row of layer i is read by layer i + 1's row filter right
+  // after it is made and by the DoG when the last layer makes that row, kBlock * (lag[L - 1] -
+  // lag[i]) rows later.
+  keep_.assign(L_, 0);
+  for (int i = 0; i < L_; ++i) {
+    if (oct_.g[i]) continue;
+    keep_[i] = 8;
+    while (keep_[i] < kBlock * (lag_[L_ - 1] - lag_[i] + 2)) keep_[i] *= 2;
+  }
+  size_t ring_samples = 0;
+  ring_off_.assign(L_, 0);
+  for (int i = 0; i < L_; ++i) {
+    ring_off_[i] = ring_samples;
+    ring_samples += static_cast<size_t>(ring_size_[i] + keep_[i]) * S_;
+  }
+  rings_ = ws_.rings.get(ring_samples + 128) + oct_.pad;
+  up_pad_ = roundUp(std::max(P_.init.h, 1), 16);
+  up_row_ = ws_.temp.get(static_cast<size_t>(W_ + 2 * up_pad_ + 64) + input_.cols + 64);
+  blend_ = up_row_ + W_ + 2 * up_pad_ + 32;
+  rows_.resize(2 * max_h_ + kBlock);
+}
+
+void OctaveSweep::placeDetectionRings() {
+  // DoG rows (a ring of `depth` rows per layer, made when the last layer makes the row) and their
+  // 3-tap max/min (a ring of 8 rows: rows up to y + 1 exist when the extremum test of row y runs).
+  n_dog_ = detect_ ? L_ - 1 : 0;
+  int depth = 16;
+  while (depth < 2 * kReach + 2 * kBlock + 4) depth *= 2;
+  view_.depth = depth;
+  view_.stride = S_;
+  view_.w = W_;
+  view_.h = H_;
+  // 16 floats ahead of the first row: dog_row writes d[-1].
+  view_.ring = detect_ ? ws_.dog_rows.get(static_cast<size_t>(n_dog_) * depth * S_ + 64) + 16 : nullptr;
+  maxmin_ = detect_ ? ws_.maxmin.get(static_cast<size_t>(n_dog_) * 2 * kMaxMinRing * S_ + 64) : nullptr;
+  if (detect_) ws_.cols.resize(W_ + 32);
+}
+
+/// Layer i, row y.
+float* OctaveSweep::layerRow(int i, int y) const {
+  if (oct_.g[i]) return oct_.row(i, y);
+  return rings_ + ring_off_[i] + static_cast<size_t>(ring_size_[i] + (y & (keep_[i] - 1))) * S_;
+}
+
+/// The 3-tap max (which = 0) or min (which = 1) of DoG layer k, row y.
+float* OctaveSweep::maxMinRow(int k, int y, int which) const {
+  return maxmin_ + (static_cast<size_t>(k * 2 + which) * kMaxMinRing + (y % kMaxMinRing)) * S_;
+}
+
+/// Rows [0, y1] of columns [0, x1] of stored layer i are this call's.
+bool OctaveSweep::made(int i, int y1, int x1) const {
+  return x1 < done_cols_[i] || (x1 < strip_cols_[i] && y1 < done_rows_[i]);
+}
+
+/// The exact values of layer i on `a` (inside the octave), for a point the rings do not hold (a
+/// Newton step that jumped far; rare): recomputed on a patch with the sweep's kernels, from the
+/// nearest layer whose values are there (a stored layer where the sweep has made those rows and
+/// columns, the octave below, the input), each output with the same arithmetic as in the sweep.
+std::vector<float> OctaveSweep::exactPatch(int i, const PatchArea& a) {
+  const int pw = a.width();
+  std::vector<float> out(static_cast<size_t>(a.height()) * pw + 64);
+  if ((oct_.g[i] && made(i, a.y1, a.x1)) || !kern_[i]) {
+    for (int y = a.y0; y <= a.y1; ++y)
+      for (int x = a.x0; x <= a.x1; ++x)
+        out[static_cast<size_t>(y - a.y0) * pw + x - a.x0] =
+            kern_[i] ? oct_.row(i, y)[x] : prev_->row(P_.n_layers, 2 * y)[2 * x];
+    return out;
+  }
+  if (oct_.g[i] && a.y0 < done_rows_[i] && made(i, done_rows_[i] - 1, a.x1)) {
+    // The rows the sweep has made read as they are, only the rows below recomputed.
+    const int split = done_rows_[i];
+    const std::vector<float> below = exactPatch(i, {split, a.y1, a.x0, a.x1});
+    for (int y = a.y0; y < split; ++y)
+      std::copy_n(oct_.row(i, y) + a.x0, pw, out.begin() + static_cast<size_t>(y - a.y0) * pw);
+    std::copy_n(below.begin(), static_cast<size_t>(a.y1 - split + 1) * pw,
+                out.begin() + static_cast<size_t>(split - a.y0) * pw);
+    return out;
+  }
+  PatchMemo& m = memo_[i];
+  if (m.area.contains(a)) {
+    const int mw = m.area.width();
+    for (int y = a.y0; y <= a.y1; ++y)
+      std::copy_n(m.v.begin() + static_cast<size_t>(y - m.area.y0) * mw + (a.x0 - m.area.x0), pw,
+                  out.begin() + static_cast<size_t>(y - a.y0) * pw);
+    return out;
+  }
+  const Kernel& k = *kern_[i];
+  const int h = k.h;
+  const PatchArea source{std::max(0, a.y0 - h), std::min(H_ - 1, a.y1 + h), std::max(0, a.x0 - h),
+                         std::min(W_ - 1, a.x1 + h)};
+  const std::vector<float> src = i > 0 ? exactPatch(i - 1, source) : doubledInputPatch(source);
+  blurPatch(k, src, source, a, out);
+  m.area = a;
+  m.v = out;
+  return out;
+}
+
+/// Octave 0, layer 0 on `a`: the doubled input rows.
+std::vector<float> OctaveSweep::doubledInputPatch(const PatchArea& a) const {
+  const int sw = a.width();
+  std::vector<float> src(static_cast<size_t>(a.height()) * sw + 64, 0.f);
+  std::vector<float> full(static_cast<size_t>(W_) + 64), blend_row(static_cast<size_t>(input_.cols) + 64);
+  for (int m = a.y0; m <= a.y1; ++m) {
+    const DoubledRow d = doubledRow(m, input_.rows);
+    K_.upsample_row(input_.ptr<uint8_t>(d.r0), input_.ptr<uint8_t>(d.r1), d.wa, d.wb, blend_row.data() + 16,
+                    full.data(), input_.cols, 0, input_.cols);
+    std::copy(full.begin() + a.x0, full.begin() + a.x1 + 1, src.begin() + static_cast<size_t>(m - a.y0) * sw);
+  }
+  return src;
+}
+
+/// Kernel k applied to `src` (the layer below on `source`: `a` widened by k.h, clipped to the
+/// octave) -> `out` on `a`. Row filter on the source rows (BORDER_REFLECT_101 at the octave's
+/// sides), then the column filter (the same at its top and bottom).
+void OctaveSweep::blurPatch(const Kernel& k, const std::vector<float>& src, const PatchArea& source,
+                            const PatchArea& a, std::vector<float>& out) const {
+  const int h = k.h, pw = a.width(), sw = source.width();
+  std::vector<float> ext(static_cast<size_t>(pw) + 2 * h + 64);
+  std::vector<float> rf(static_cast<size_t>(source.height()) * (pw + 64));
+  for (int y = source.y0; y <= source.y1; ++y) {
+    for (int t = 0; t < pw + 2 * h; ++t)
+      ext[t] = src[static_cast<size_t>(y - source.y0) * sw + reflect101(a.x0 - h + t, W_) - source.x0];
+    K_.row_filter(ext.data(), rf.data() + static_cast<size_t>(y - source.y0) * (pw + 64), pw, k.taps.data(), k.n);
+  }
+  std::vector<const float*> col(2 * h + 1);
+  std::vector<float> line(static_cast<size_t>(pw) + 64);
+  for (int y = a.y0; y <= a.y1; ++y) {
+    for (int j = 0; j <= 2 * h; ++j)
+      col[j] = rf.data() + static_cast<size_t>(reflect101(y - h + j, H_) - source.y0) * (pw + 64);
+    float* o1 = line.data();
+    K_.col_filter(col.data(), &o1, 1, pw, k.centre.data(), h);
+    std::copy(line.begin(), line.begin() + pw, out.begin() + static_cast<size_t>(y - a.y0) * pw);
+  }
+}
+
+/// The DoG around (layer, r, c) from exact patches of the Gaussian layers layer-1..layer+2.
+void OctaveSweep::exactDogCube(int layer, int r, int c, DogCube* cube) {
+  cube->layer = layer;
+  cube->r = r;
+  cube->c = c;
+  std::vector<float> g[4];
+  for (int l = 3; l >= 0; --l) g[l] = exactPatch(layer - 1 + l, {r - 1, r + 1, c - 1, c + 1});  // top first: see memo_
+  for (int l = 0; l < 3; ++l)
+    for (int k = 0; k < 9; ++k) cube->v[l][k / 3][k % 3] = g[l + 1][k] - g[l][k];
+}
+
+void OctaveSweep::run() {
+  const int n_strips = std::max(1, (W_ + kStripWidth / 2) / kStripWidth);
+  const int n_blocks = (H_ + kBlock - 1) / kBlock;
+  for (int strip = 0; strip < n_strips; ++strip) {
+    beginStrip(strip, n_strips);
+    for (int step = 0; step < n_blocks + lag_[L_ - 1]; ++step) {
+      for (int i = 0; i < L_; ++i) makeBlock(i, step);
+      if (detect_) detectBlock(step);
+    }
+  }
+}
+
+/// The columns, the extremum test's range and the candidates of strip `strip`.
+void OctaveSweep::beginStrip(int strip, int n_strips) {
+  const int sx0 = strip * kStripWidth, sx1 = strip + 1 == n_strips ? W_ : sx0 + kStripWidth;
+  // Columns [c0[i], c1[i]) of layer i: each reads columns [c0[i] - h, c1[i] + h) of layer i - 1,
+  // which this strip has made (the halos), so every column made is exact. (Not rounded to a
+  // vector boundary: the columns below c0 of a layer kept as a ring were not made here.)
+  c0_.assign(L_, 0);
+  c1_.assign(L_, 0);
+  filled_.assign(L_, 0);
+  for (int i = 0; i < L_; ++i) {
+    c0_[i] = std::max(0, sx0 - halo_[i]);
+    c1_[i] = std::min(W_, sx1 + halo_[i]);
+    if (strip > 0) done_cols_[i] = strip_cols_[i];
+    strip_cols_[i] = c1_[i];
+    done_rows_[i] = 0;
+  }
+  tested_ = std::max(kBorder, test_area_.y);
+  test_end_ = std::min(H_ - kBorder, test_area_.y + test_area_.height);
+  tx0_ = std::max({kBorder, sx0, test_area_.x});
+  tx1_ = std::min({W_ - kBorder, sx1, test_area_.x + test_area_.width});
+  // The DoG on the last layer's exact columns.
+  dx0_ = L_ > 1 ? c0_[L_ - 1] : 0;
+  dx1_ = L_ > 1 ? c1_[L_ - 1] : 0;
+  view_.col_lo = dx0_;
+  view_.col_hi = dx1_;
+  pending_.clear();
+  next_pending_ = 0;
+}
+
+/// Row m of the layer that layer i blurs, on the strip's columns of layer i widened by its kernel.
+const float* OctaveSweep::sourceRow(int i, int m) {
+  if (i > 0) return layerRow(i - 1, m);
+  // Octave 0, layer 0: row m of the doubled input (OpenCV's bilinear resize coefficients),
+  // the columns the init blur reads.
+  const DoubledRow d = doubledRow(m, input_.rows);
+  float* out = up_row_ + up_pad_;
+  const int h = P_.init.h;
+  const int u0 = std::max(0, c0_[0] - h) / 2, u1 = std::min(input_.cols, (c1_[0] + h + 1) / 2 + 1);
+  K_.upsample_row(input_.ptr<uint8_t>(d.r0), input_.ptr<uint8_t>(d.r1), d.wa, d.wb, blend_ + 16, out, input_.cols,
+                  u0, u1);
+  if (c0_[0] - h < 0) fillPad(out, W_, up_pad_, true);
+  if (c1_[0] + h > W_) fillPad(out, W_, up_pad_, false);
+  return out;
+}
+
+/// The block of layer i due at `step` (kBlock rows, the strip's columns): the row filter on the
+/// source rows it needs, into the layer's filter ring, then the column filter into its rows.
+void OctaveSweep::makeBlock(int i, int step) {
+  const int y0 = (step - lag_[i]) * kBlock;
+  if (y0 < 0 || y0 >= H_) return;
+  const int y1 = std::min(H_, y0 + kBlock);
+  if (!kern_[i]) {
+    subsampleBlock(i, y0, y1);
+    return;
+  }
+  const int x0 = c0_[i], n = c1_[i] - c0_[i];
+  const Kernel& k = *kern_[i];
+  float* ring = rings_ + ring_off_[i];
+  const int need = std::min(H_ - 1, y1 - 1 + k.h);
+  while (filled_[i] <= need) {
+    const int m = filled_[i]++;
+    K_.row_filter(sourceRow(i, m) + x0 - k.h, ring + static_cast<size_t>(m % ring_size_[i]) * S_ + x0, n,
+                  k.taps.data(), k.n);
+  }
+  for (int j = 0; j < 2 * k.h + (y1 - y0); ++j)
+    rows_[j] = ring + static_cast<size_t>(reflect101(y0 + j - k.h, H_) % ring_size_[i]) * S_ + x0;
+  float* outs[kBlock];
+  for (int y = y0; y < y1; ++y) outs[y - y0] = layerRow(i, y) + x0;
+  K_.col_filter(rows_.data(), outs, y1 - y0, n, k.centre.data(), k.h);
+  done_rows_[i] = y1;
+  for (int y = y0; y < y1; ++y) {
+    if (x0 == 0) fillPad(layerRow(i, y), W_, oct_.pad, true);
+    if (c1_[i] == W_) fillPad(layerRow(i, y), W_, oct_.pad, false);
+  }
+}
+
+/// Octave o > 0, layer 0, rows [y0, y1): every second pixel of layer n_layers of the octave below.
+void OctaveSweep::subsampleBlock(int i, int y0, int y1) {
+  const int x0 = c0_[i];
+  for (int y = y0; y < y1; ++y) {
+    const float* src = prev_->row(P_.n_layers, 2 * y);
+    float* dst = layerRow(i, y);
+    for (int x = x0; x < c1_[i]; ++x) dst[x] = src[2 * x];
+    if (x0 == 0) fillPad(dst, W_, oct_.pad, true);
+    if (c1_[i] == W_) fillPad(dst, W_, oct_.pad, false);
+  }
+}
+
+/// The last layer's newest block: the DoG rows of every layer and their 3-tap max/min, the
+/// extremum test of the rows whose 3x3x3 neighbourhoods are now complete, then the
+/// interpolation of the candidates kReach rows above.
+void OctaveSweep::detectBlock(int step) {
+  const int y0 = (step - lag_[L_ - 1]) * kBlock;
+  if (y0 < 0 || y0 >= H_) return;
+  const int y1 = std::min(H_, y0 + kBlock);
+  makeDogRows(y0, y1);
+  testRows(y1);
+  interpolateCandidates(y1);
+}
+
+void OctaveSweep::makeDogRows(int y0, int y1) {
+  for (int y = y0; y < y1; ++y)
+    for (int k = 0; k < n_dog_; ++k) {
+      K_.dog_row(layerRow(k, y) + dx0_, layerRow(k + 1, y) + dx0_, dogRow(k, y) + dx0_, maxMinRow(k, y, 0) + dx0_,
+                 maxMinRow(k, y, 1) + dx0_, dx1_ - dx0_);
+    }
+}
+
+/// The extremum test of the rows up to y1 - 2 (rows up to y1 - 1 exist), candidates into pending_.
+void OctaveSweep::testRows(int y1) {
+  for (; tested_ < std::min(y1 - 1, test_end_); ++tested_) {
+    const int yy = tested_;
+    if (tx0_ >= tx1_) continue;
+    for (int layer = 1; layer <= P_.n_layers; ++layer) {
+      const float* mx[9];
+      const float* mn[9];
+      for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b) {
+          mx[3 * a + b] = maxMinRow(layer - 1 + a, yy - 1 + b, 0);
+          mn[3 * a + b] = maxMinRow(layer - 1 + a, yy - 1 + b, 1);
+        }
+      const int n = K_.extrema_row(dogRow(layer, yy), mx, mn, tx0_, tx1_, thr_, ws_.cols.data());
+      for (int q = 0; q < n; ++q) pending_.push_back({layer, yy, ws_.cols[q]});
+      *candidates_ += n;
+    }
+  }
+}
+
+/// The interpolation of the pending candidates kReach rows above y1 - 1 (all of them at the
+/// octave's last row), kept extrema into *found_.
+void OctaveSweep::interpolateCandidates(int y1) {
+  view_.row_hi = y1 - 1;
+  view_.row_lo = y1 - view_.depth;
+  const bool last = y1 == H_;
+  auto exact = [this](int layer, int r, int c, DogCube* cube) { exactDogCube(layer, r, c, cube); };
+  for (; next_pending_ < pending_.size() && (last || pending_[next_pending_].r + kReach <= view_.row_hi);
+       ++next_pending_) {
+    Extremum x;
+    if (interpolate(view_, exact, P_, o_, pending_[next_pending_], &x, far_steps_) == Interpolated::kKept)
+      found_->push_back(x);
+  }
+}
+
 /// Builds layers 0..n_build-1 of octave `o` in top-to-bottom sweeps over vertical strips,
 /// kBlock rows at a time, with OpenCV's arithmetic. Layers 1..n_layers are stored (Octave); the
 /// others are kept as rings of their newest rows (the next layer's filter and the DoG read them).
@@ -446,283 +882,7 @@ DoubledRow doubledRow(int m, int input_rows) {
 void sweepOctave(const si::Kernels& K, const Params& P, int o, const cv::Mat& input, const Octave* prev,
                  Octave& oct, int n_build, bool detect, const cv::Rect& test_area, Workspace& ws,
                  std::vector<Extremum>* found, int* far_steps, int* candidates) {
-  constexpr int kBlock = 4;         // rows per step: the column filter makes 4 rows from 2h + 4
-  constexpr int kStripWidth = 512;  // columns per strip (the last one takes the rest)
-  // The interpolation runs kReach rows behind the extremum test, on DoG rows still held: a
-  // Newton step may move a candidate that far (columns too: the strips' halos grow by it).
-  constexpr int kReach = 8;
-  const int W = oct.w, H = oct.h, S = oct.stride;
-  const int L = n_build;
-  // Layer i makes block b - lag[i] at step b: by then layer i-1 has rows up to its last row + h_i.
-  std::vector<int> lag(L), halo(L, 0), ring_size(L, 0), keep(L, 0);
-  std::vector<const Kernel*> kern(L, nullptr);
-  if (o == 0) kern[0] = &P.init;
-  for (int i = 1; i < L; ++i) kern[i] = &P.kernels[i];
-  int max_h = 0;
-  for (int i = 0; i < L; ++i) {
-    const int h = kern[i] ? kern[i]->h : 0;
-    lag[i] = (i == 0 ? 0 : lag[i - 1]) + (h + kBlock - 1) / kBlock;
-    if (kern[i]) ring_size[i] = std::min(2 * h + kBlock, H);
-    max_h = std::max(max_h, h);
-  }
-  for (int i = L - 2; i >= 0; --i) halo[i] = halo[i + 1] + kern[i + 1]->h;
-  if (detect)
-    for (int& v : halo) v += 1 + kReach;
-  // Rows of the layers not stored: a row of layer i is read by layer i + 1's row filter right
-  // after it is made and by the DoG when the last layer makes that row, kBlock * (lag[L - 1] -
-  // lag[i]) rows later.
-  for (int i = 0; i < L; ++i) {
-    if (oct.g[i]) continue;
-    keep[i] = 8;
-    while (keep[i] < kBlock * (lag[L - 1] - lag[i] + 2)) keep[i] *= 2;
-  }
-  size_t ring_samples = 0;
-  std::vector<size_t> ring_off(L, 0);
-  for (int i = 0; i < L; ++i) {
-    ring_off[i] = ring_samples;
-    ring_samples += static_cast<size_t>(ring_size[i] + keep[i]) * S;
-  }
-  float* const rings = ws.rings.get(ring_samples + 128) + oct.pad;
-  auto frow = [&](int i, int y) -> float* {  // layer i, row y
-    if (oct.g[i]) return oct.row(i, y);
-    return rings + ring_off[i] + static_cast<size_t>(ring_size[i] + (y & (keep[i] - 1))) * S;
-  };
-  // The doubled input rows, blended and padded for the init blur (octave 0 only).
-  const int up_pad = roundUp(std::max(P.init.h, 1), 16);
-  float* const up_row = ws.temp.get(static_cast<size_t>(W + 2 * up_pad + 64) + input.cols + 64);
-  float* const blend = up_row + W + 2 * up_pad + 32;
-  // DoG rows (a ring of `depth` rows per layer, made when the last layer makes the row) and their
-  // 3-tap max/min (a ring of 8 rows: rows up to y + 1 exist when the extremum test of row y runs).
-  const int n_dog = detect ? L - 1 : 0;
-  int depth = 16;
-  while (depth < 2 * kReach + 2 * kBlock + 4) depth *= 2;
-  DogView view;
-  view.depth = depth;
-  view.stride = S;
-  view.w = W;
-  view.h = H;
-  // 16 floats ahead of the first row: dog_row writes d[-1].
-  view.ring = detect ? ws.dog_rows.get(static_cast<size_t>(n_dog) * depth * S + 64) + 16 : nullptr;
-  auto drow = [&](int k, int y) { return const_cast<float*>(view.row(k, y)); };
-  constexpr int kMaxMinRing = 8;
-  float* const maxmin =
-      detect ? ws.maxmin.get(static_cast<size_t>(n_dog) * 2 * kMaxMinRing * S + 64) : nullptr;
-  auto mslot = [&](int k, int y, int which) {
-    return maxmin + (static_cast<size_t>(k * 2 + which) * kMaxMinRing + (y % kMaxMinRing)) * S;
-  };
-  std::vector<const float*> rows(2 * max_h + kBlock);
-  float* outs[kBlock];
-  const float thr = static_cast<float>(P.threshold);
-  if (detect) ws.cols.resize(W + 32);
-  std::vector<Candidate>& pending = ws.candidates;
-
-  // What the sweep has made of each stored layer so far in this call: every row of columns
-  // [0, done_cols[i]) (the strips before this one) and rows [0, done_rows[i]) of columns
-  // [0, strip_cols[i]). Anything else in the layer's buffer is a previous call's.
-  std::vector<int> done_cols(L, 0), done_rows(L, 0), strip_cols(L, 0);
-  auto made = [&](int i, int y1, int x1) {
-    return x1 < done_cols[i] || (x1 < strip_cols[i] && y1 < done_rows[i]);
-  };
-  // The exact values of layer i on rows [y0, y1], columns [x0, x1] (inside the octave), for a
-  // point the rings do not hold (a Newton step that jumped far; rare): recomputed on a patch with
-  // the sweep's kernels, from the nearest layer whose values are there (a stored layer where the
-  // sweep has made those rows and columns, the octave below, the input), each output with the
-  // same arithmetic as in the sweep.
-  // The last patch recomputed of each layer (values exact, so valid for the whole call): the
-  // patches of the lower layers made for a higher one serve the lower layers' own requests.
-  struct PatchMemo {
-    int y0 = 0, y1 = -1, x0 = 0, x1 = -1;
-    std::vector<float> v;
-  };
-  std::vector<PatchMemo> memo(L);
-  std::function<std::vector<float>(int, int, int, int, int)> patch = [&](int i, int y0, int y1, int x0,
-                                                                          int x1) {
-    const int pw = x1 - x0 + 1, ph = y1 - y0 + 1;
-    std::vector<float> out(static_cast<size_t>(ph) * pw + 64);
-    if ((oct.g[i] && made(i, y1, x1)) || !kern[i]) {
-      for (int y = y0; y <= y1; ++y)
-        for (int x = x0; x <= x1; ++x)
-          out[static_cast<size_t>(y - y0) * pw + x - x0] =
-              kern[i] ? oct.row(i, y)[x] : prev->row(P.n_layers, 2 * y)[2 * x];
-      return out;
-    }
-    if (oct.g[i] && y0 < done_rows[i] && made(i, done_rows[i] - 1, x1)) {
-      // The rows the sweep has made read as they are, only the rows below recomputed.
-      const int split = done_rows[i];
-      const std::vector<float> below = patch(i, split, y1, x0, x1);
-      for (int y = y0; y < split; ++y) std::copy_n(oct.row(i, y) + x0, pw, out.begin() + static_cast<size_t>(y - y0) * pw);
-      std::copy_n(below.begin(), static_cast<size_t>(y1 - split + 1) * pw, out.begin() + static_cast<size_t>(split - y0) * pw);
-      return out;
-    }
-    PatchMemo& m = memo[i];
-    if (y0 >= m.y0 && y1 <= m.y1 && x0 >= m.x0 && x1 <= m.x1) {
-      const int mw = m.x1 - m.x0 + 1;
-      for (int y = y0; y <= y1; ++y)
-        std::copy_n(m.v.begin() + static_cast<size_t>(y - m.y0) * mw + (x0 - m.x0), pw,
-                    out.begin() + static_cast<size_t>(y - y0) * pw);
-      return out;
-    }
-    const Kernel& k = *kern[i];
-    const int h = k.h;
-    const int sy0 = std::max(0, y0 - h), sy1 = std::min(H - 1, y1 + h);
-    const int sx0 = std::max(0, x0 - h), sx1 = std::min(W - 1, x1 + h), sw = sx1 - sx0 + 1;
-    std::vector<float> src;
-    if (i > 0) {
-      src = patch(i - 1, sy0, sy1, sx0, sx1);
-    } else {  // octave 0, layer 0: the doubled input rows
-      src.assign(static_cast<size_t>(sy1 - sy0 + 1) * sw + 64, 0.f);
-      std::vector<float> full(static_cast<size_t>(W) + 64), blend_row(static_cast<size_t>(input.cols) + 64);
-      for (int m = sy0; m <= sy1; ++m) {
-        const DoubledRow d = doubledRow(m, input.rows);
-        K.upsample_row(input.ptr<uint8_t>(d.r0), input.ptr<uint8_t>(d.r1), d.wa, d.wb, blend_row.data() + 16,
-                       full.data(), input.cols, 0, input.cols);
-        std::copy(full.begin() + sx0, full.begin() + sx1 + 1, src.begin() + static_cast<size_t>(m - sy0) * sw);
-      }
-    }
-    // Row filter on the source rows (BORDER_REFLECT_101 at the octave's sides), then the column
-    // filter (the same at its top and bottom).
-    std::vector<float> ext(static_cast<size_t>(pw) + 2 * h + 64);
-    std::vector<float> rf(static_cast<size_t>(sy1 - sy0 + 1) * (pw + 64));
-    for (int y = sy0; y <= sy1; ++y) {
-      for (int t = 0; t < pw + 2 * h; ++t)
-        ext[t] = src[static_cast<size_t>(y - sy0) * sw + reflect101(x0 - h + t, W) - sx0];
-      K.row_filter(ext.data(), rf.data() + static_cast<size_t>(y - sy0) * (pw + 64), pw, k.taps.data(), k.n);
-    }
-    std::vector<const float*> col(2 * h + 1);
-    std::vector<float> line(static_cast<size_t>(pw) + 64);
-    for (int y = y0; y <= y1; ++y) {
-      for (int j = 0; j <= 2 * h; ++j)
-        col[j] = rf.data() + static_cast<size_t>(reflect101(y - h + j, H) - sy0) * (pw + 64);
-      float* o1 = line.data();
-      K.col_filter(col.data(), &o1, 1, pw, k.centre.data(), h);
-      std::copy(line.begin(), line.begin() + pw, out.begin() + static_cast<size_t>(y - y0) * pw);
-    }
-    m.y0 = y0, m.y1 = y1, m.x0 = x0, m.x1 = x1;
-    m.v = out;
-    return out;
-  };
-  auto exact = [&](int layer, int r, int c, DogCube* cube) {
-    cube->layer = layer;
-    cube->r = r;
-    cube->c = c;
-    std::vector<float> g[4];
-    for (int l = 3; l >= 0; --l) g[l] = patch(layer - 1 + l, r - 1, r + 1, c - 1, c + 1);  // top first: see memo
-    for (int l = 0; l < 3; ++l)
-      for (int k = 0; k < 9; ++k) cube->v[l][k / 3][k % 3] = g[l + 1][k] - g[l][k];
-  };
-
-  const int n_strips = std::max(1, (W + kStripWidth / 2) / kStripWidth);
-  for (int strip = 0; strip < n_strips; ++strip) {
-    const int sx0 = strip * kStripWidth, sx1 = strip + 1 == n_strips ? W : sx0 + kStripWidth;
-    // Columns [c0[i], c1[i]) of layer i: each reads columns [c0[i] - h, c1[i] + h) of layer i - 1,
-    // which this strip has made (the halos), so every column made is exact. (Not rounded to a
-    // vector boundary: the columns below c0 of a layer kept as a ring were not made here.)
-    std::vector<int> c0(L), c1(L), filled(L, 0);
-    for (int i = 0; i < L; ++i) {
-      c0[i] = std::max(0, sx0 - halo[i]);
-      c1[i] = std::min(W, sx1 + halo[i]);
-      if (strip > 0) done_cols[i] = strip_cols[i];
-      strip_cols[i] = c1[i];
-      done_rows[i] = 0;
-    }
-    auto sourceRow = [&](int i, int m) -> const float* {
-      if (i > 0) return frow(i - 1, m);
-      // Octave 0, layer 0: row m of the doubled input (OpenCV's bilinear resize coefficients),
-      // the columns the init blur reads.
-      const DoubledRow d = doubledRow(m, input.rows);
-      float* out = up_row + up_pad;
-      const int h = P.init.h;
-      const int u0 = std::max(0, c0[0] - h) / 2, u1 = std::min(input.cols, (c1[0] + h + 1) / 2 + 1);
-      K.upsample_row(input.ptr<uint8_t>(d.r0), input.ptr<uint8_t>(d.r1), d.wa, d.wb, blend + 16, out, input.cols,
-                     u0, u1);
-      if (c0[0] - h < 0) fillPad(out, W, up_pad, true);
-      if (c1[0] + h > W) fillPad(out, W, up_pad, false);
-      return out;
-    };
-    const int n_blocks = (H + kBlock - 1) / kBlock;
-    int tested = std::max(kBorder, test_area.y);  // next row of the extremum test
-    const int test_end = std::min(H - kBorder, test_area.y + test_area.height);
-    const int tx0 = std::max({kBorder, sx0, test_area.x});
-    const int tx1 = std::min({W - kBorder, sx1, test_area.x + test_area.width});
-    // The DoG on the last layer's exact columns.
-    const int dx0 = L > 1 ? c0[L - 1] : 0, dx1 = L > 1 ? c1[L - 1] : 0;
-    view.col_lo = dx0;
-    view.col_hi = dx1;
-    pending.clear();
-    size_t next_pending = 0;
-    for (int step = 0; step < n_blocks + lag[L - 1]; ++step) {
-      for (int i = 0; i < L; ++i) {
-        const int y0 = (step - lag[i]) * kBlock;
-        if (y0 < 0 || y0 >= H) continue;
-        const int y1 = std::min(H, y0 + kBlock);
-        const int x0 = c0[i], n = c1[i] - c0[i];
-        if (!kern[i]) {  // octave o > 0, layer 0: subsample
-          for (int y = y0; y < y1; ++y) {
-            const float* src = prev->row(P.n_layers, 2 * y);
-            float* dst = frow(i, y);
-            for (int x = x0; x < c1[i]; ++x) dst[x] = src[2 * x];
-            if (x0 == 0) fillPad(dst, W, oct.pad, true);
-            if (c1[i] == W) fillPad(dst, W, oct.pad, false);
-          }
-          continue;
-        }
-        const Kernel& k = *kern[i];
-        float* ring = rings + ring_off[i];
-        const int need = std::min(H - 1, y1 - 1 + k.h);
-        while (filled[i] <= need) {
-          const int m = filled[i]++;
-          K.row_filter(sourceRow(i, m) + x0 - k.h, ring + static_cast<size_t>(m % ring_size[i]) * S + x0, n,
-                       k.taps.data(), k.n);
-        }
-        for (int j = 0; j < 2 * k.h + (y1 - y0); ++j)
-          rows[j] = ring + static_cast<size_t>(reflect101(y0 + j - k.h, H) % ring_size[i]) * S + x0;
-        for (int y = y0; y < y1; ++y) outs[y - y0] = frow(i, y) + x0;
-        K.col_filter(rows.data(), outs, y1 - y0, n, k.centre.data(), k.h);
-        done_rows[i] = y1;
-        for (int y = y0; y < y1; ++y) {
-          if (x0 == 0) fillPad(frow(i, y), W, oct.pad, true);
-          if (c1[i] == W) fillPad(frow(i, y), W, oct.pad, false);
-        }
-      }
-      if (!detect) continue;
-      // The last layer's newest block: the DoG rows of every layer and their 3-tap max/min, the
-      // extremum test of the rows whose 3x3x3 neighbourhoods are now complete, then the
-      // interpolation of the candidates kReach rows above.
-      const int y0 = (step - lag[L - 1]) * kBlock;
-      if (y0 < 0 || y0 >= H) continue;
-      const int y1 = std::min(H, y0 + kBlock);
-      for (int y = y0; y < y1; ++y)
-        for (int k = 0; k < n_dog; ++k) {
-          K.dog_row(frow(k, y) + dx0, frow(k + 1, y) + dx0, drow(k, y) + dx0, mslot(k, y, 0) + dx0,
-                    mslot(k, y, 1) + dx0, dx1 - dx0);
-        }
-      for (; tested < std::min(y1 - 1, test_end); ++tested) {
-        const int yy = tested;
-        if (tx0 >= tx1) continue;
-        for (int layer = 1; layer <= P.n_layers; ++layer) {
-          const float* mx[9];
-          const float* mn[9];
-          for (int a = 0; a < 3; ++a)
-            for (int b = 0; b < 3; ++b) {
-              mx[3 * a + b] = mslot(layer - 1 + a, yy - 1 + b, 0);
-              mn[3 * a + b] = mslot(layer - 1 + a, yy - 1 + b, 1);
-            }
-          const int n = K.extrema_row(drow(layer, yy), mx, mn, tx0, tx1, thr, ws.cols.data());
-          for (int q = 0; q < n; ++q) pending.push_back({layer, yy, ws.cols[q]});
-          *candidates += n;
-        }
-      }
-      view.row_hi = y1 - 1;
-      view.row_lo = y1 - depth;
-      const bool last = y1 == H;
-      for (; next_pending < pending.size() && (last || pending[next_pending].r + kReach <= view.row_hi);
-           ++next_pending) {
-        Extremum x;
-        if (interpolate(view, exact, P, o, pending[next_pending], &x, far_steps) == Interpolated::kKept)
-          found->push_back(x);
-      }
-    }
-  }
+  OctaveSweep(K, P, o, input, prev, oct, n_build, detect, test_area, ws, found, far_steps, candidates).run();
 }
 
 /// The gradient window of radius >= `radius` around (r, c) of `layer` (see GradientWindow): the
@@ -918,47 +1078,36 @@ bool strongerFirst(const cv::KeyPoint& a, const cv::KeyPoint& b) {
   return a.angle < b.angle;
 }
 
-}  // namespace
+/// A moment of the wall clock and of the calling thread's CPU time (ms), for the stage times.
+struct StageTime {
+  double wall, cpu;
+  static StageTime now() {
+    timespec c{};
+    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c);
+    return {std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now().time_since_epoch()).count(),
+            1e3 * static_cast<double>(c.tv_sec) + 1e-6 * static_cast<double>(c.tv_nsec)};
+  }
+};
+double wallMs(StageTime a, StageTime b) { return b.wall - a.wall; }
+double cpuMs(StageTime a, StageTime b) { return b.cpu - a.cpu; }
 
-void fastSiftDetectAndCompute(const cv::Mat& gray8, const SiftOptions& opt, const FastSiftCall& call,
-                              std::vector<cv::KeyPoint>* keypoints, cv::Mat* descriptors) {
-  CV_Assert(gray8.type() == CV_8UC1 && !gray8.empty());
-  // Stage times: wall clock and the calling thread's CPU time (ms).
-  struct Clock {
-    struct time_point {
-      double wall, cpu;
-    };
-    static time_point now() {
-      timespec c{};
-      clock_gettime(CLOCK_THREAD_CPUTIME_ID, &c);
-      return {std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now().time_since_epoch()).count(),
-              1e3 * static_cast<double>(c.tv_sec) + 1e-6 * static_cast<double>(c.tv_nsec)};
-    }
-  };
-  auto ms = [](Clock::time_point a, Clock::time_point b) { return b.wall - a.wall; };
-  auto cpuMs = [](Clock::time_point a, Clock::time_point b) { return b.cpu - a.cpu; };
-  FastSiftStats stats;
-  const si::Kernels& K = kernelsFor(call.isa);
-  const Params P = makeParams(opt);
-  const int threads = call.threads;
-  Workspace& ws = workspace();
+/// Keypoint size of octave o (cv::SIFT convention, work-image px): sigma 2^((layer+xi)/n) 2^o,
+/// layer + xi in (0.5, n + 0.5).
+void octaveSizeRange(const Params& P, int o, double* lo, double* hi) {
+  *lo = P.sigma * std::pow(2., 0.5 / P.n_layers) * std::ldexp(1., o) * 0.999;
+  *hi = P.sigma * std::pow(2., (P.n_layers + 0.5) / P.n_layers) * std::ldexp(1., o) * 1.001;
+}
 
-  // Octave sizes and the layers each needs (doubled input: firstOctave = -1).
+/// Octave sizes (doubled input: firstOctave = -1) in ws.octaves, down to the last octave whose
+/// keypoints can be as small as call.max_size (with `prune`; else all of them).
+void sizeOctaves(const cv::Mat& gray8, const Params& P, const FastSiftCall& call, bool prune, Workspace& ws) {
   const int W0 = gray8.cols * 2, H0 = gray8.rows * 2;
   const int n_octaves = cvRoundD(std::log(static_cast<double>(std::min(W0, H0))) / std::log(2.) - 2) + 1;
-  const int L = P.n_layers + 3;
-  // Keypoint size of octave o (cv::SIFT convention, work-image px): sigma 2^((layer+xi)/n) 2^o,
-  // layer + xi in (0.5, n + 0.5).
-  const bool prune = opt.max_features == 0;
-  auto octaveSizes = [&](int o, double* lo, double* hi) {
-    *lo = P.sigma * std::pow(2., 0.5 / P.n_layers) * std::ldexp(1., o) * 0.999;
-    *hi = P.sigma * std::pow(2., (P.n_layers + 0.5) / P.n_layers) * std::ldexp(1., o) * 1.001;
-  };
   int last_octave = n_octaves - 1;
   if (prune) {
     while (last_octave >= 0) {
       double lo, hi;
-      octaveSizes(last_octave, &lo, &hi);
+      octaveSizeRange(P, last_octave, &lo, &hi);
       if (lo <= call.max_size) break;
       --last_octave;
     }
@@ -967,178 +1116,263 @@ void fastSiftDetectAndCompute(const cv::Mat& gray8, const SiftOptions& opt, cons
   int max_h = P.init.h;
   for (const Kernel& k : P.kernels) max_h = std::max(max_h, k.h);
   const int pad = roundUp(std::max(max_h, 1), 16);
-  size_t total = 0;
   for (int o = 0, w = W0, h = H0; o <= last_octave; ++o, w /= 2, h /= 2) {
     Octave& oct = ws.octaves[o];
     oct.w = w;
     oct.h = h;
     oct.pad = pad;
     oct.stride = roundUp(w + 2 * pad + 32, 16);
-    total += static_cast<size_t>(P.n_layers) * h * oct.stride + 64;
   }
+}
+
+/// Layers 1..n_layers of every octave placed in the workspace's pyramid buffer (the sweep keeps
+/// the others as rings), and a new generation for each octave.
+void placeStoredLayers(const Params& P, Workspace& ws) {
+  size_t total = 0;
+  for (const Octave& oct : ws.octaves) total += static_cast<size_t>(P.n_layers) * oct.h * oct.stride + 64;
   float* mem = ws.pyramid.get(total + 64);
-  std::vector<bool> search(ws.octaves.size(), true);
-  for (int o = 0; o <= last_octave; ++o) {
-    Octave& oct = ws.octaves[o];
-    oct.g.assign(L, nullptr);
+  for (Octave& oct : ws.octaves) {
+    oct.g.assign(P.n_layers + 3, nullptr);
     oct.generation = ++generation;
     const size_t plane = static_cast<size_t>(oct.h) * oct.stride;
-    for (int i = 1; i <= P.n_layers; ++i, mem += plane) oct.g[i] = mem + pad;
+    for (int i = 1; i <= P.n_layers; ++i, mem += plane) oct.g[i] = mem + oct.pad;
     mem += 64;
+  }
+}
+
+/// Per octave: whether it can hold keypoints of a size in [call.min_size, call.max_size] (always
+/// without `prune`).
+std::vector<bool> searchedOctaves(const Params& P, const FastSiftCall& call, bool prune, size_t n_octaves) {
+  std::vector<bool> search(n_octaves, true);
+  for (size_t o = 0; o < n_octaves; ++o) {
     double lo, hi;
-    octaveSizes(o, &lo, &hi);
+    octaveSizeRange(P, static_cast<int>(o), &lo, &hi);
     if (prune) search[o] = hi >= call.min_size && lo <= call.max_size;
   }
+  return search;
+}
 
-  // Scale space and extrema, octave by octave.
+/// The extremum test where keypoints are wanted: call.roi (work px) in octave px, widened by 4
+/// px (an extremum can move that far while it is interpolated); the whole octave without a roi.
+cv::Rect testArea(const FastSiftCall& call, bool prune, int o, const Octave& oct) {
+  cv::Rect test_area(0, 0, oct.w, oct.h);
+  if (call.roi.area() > 0 && prune) {
+    const double to_oct = 2.0 / (1 << o);  // octave 0 is the doubled image
+    const int x0 = static_cast<int>(std::floor(call.roi.x * to_oct)) - 4;
+    const int y0 = static_cast<int>(std::floor(call.roi.y * to_oct)) - 4;
+    const int x1 = static_cast<int>(std::ceil((call.roi.x + call.roi.width) * to_oct)) + 4;
+    const int y1 = static_cast<int>(std::ceil((call.roi.y + call.roi.height) * to_oct)) + 4;
+    test_area = cv::Rect(x0, y0, x1 - x0, y1 - y0) & test_area;
+  }
+  return test_area;
+}
+
+/// Scale space and extrema, octave by octave: every octave of ws.octaves built as far as a search
+/// or a later octave needs it, the octaves in `search` searched. Returns the extrema sorted by
+/// octave, layer, row and column, one per spot; stage times and counts added to *stats.
+std::vector<Extremum> findExtrema(const si::Kernels& K, const Params& P, const cv::Mat& gray8,
+                                  const FastSiftCall& call, bool prune, const std::vector<bool>& search,
+                                  Workspace& ws, FastSiftStats* stats) {
   std::vector<Extremum> extrema;
+  const int last_octave = static_cast<int>(ws.octaves.size()) - 1;
   for (int o = 0; o <= last_octave; ++o) {
     Octave& oct = ws.octaves[o];
     const bool detect = search[o] && oct.w > 2 * kBorder && oct.h > 2 * kBorder;
     // Layers above n_layers only feed the DoG; an octave not searched needs layers 0..n_layers
     // (layer n_layers is the next octave's base), and only if a later octave is built.
-    const int n_build = detect ? L : (o < last_octave ? P.n_layers + 1 : 0);
+    const int n_build = detect ? P.n_layers + 3 : (o < last_octave ? P.n_layers + 1 : 0);
     if (n_build == 0) continue;
-    const auto t0 = Clock::now();
+    const auto t0 = StageTime::now();
     ws.candidates.clear();
-    // The extremum test where keypoints are wanted: call.roi (work px) in octave px, widened by 4
-    // px (an extremum can move that far while it is interpolated).
-    cv::Rect test_area(0, 0, oct.w, oct.h);
-    if (call.roi.area() > 0 && prune) {
-      const double to_oct = 2.0 / (1 << o);  // octave 0 is the doubled image
-      const int x0 = static_cast<int>(std::floor(call.roi.x * to_oct)) - 4;
-      const int y0 = static_cast<int>(std::floor(call.roi.y * to_oct)) - 4;
-      const int x1 = static_cast<int>(std::ceil((call.roi.x + call.roi.width) * to_oct)) + 4;
-      const int y1 = static_cast<int>(std::ceil((call.roi.y + call.roi.height) * to_oct)) + 4;
-      test_area = cv::Rect(x0, y0, x1 - x0, y1 - y0) & test_area;
-    }
+    const cv::Rect test_area = testArea(call, prune, o, oct);
     const size_t first = extrema.size();
     int far_steps = 0, candidates = 0;
     sweepOctave(K, P, o, gray8, o > 0 ? &ws.octaves[o - 1] : nullptr, oct, n_build, detect && test_area.area() > 0,
                 test_area, ws, &extrema, &far_steps, &candidates);
-    const auto t1 = Clock::now();
-    stats.scale_space_ms += ms(t0, t1);
-    stats.scale_space_cpu_ms += cpuMs(t0, t1);
-    ++stats.octaves_built;
+    const auto t1 = StageTime::now();
+    stats->scale_space_ms += wallMs(t0, t1);
+    stats->scale_space_cpu_ms += cpuMs(t0, t1);
+    ++stats->octaves_built;
     if (!detect) continue;
-    ++stats.octaves_searched;
-    stats.candidates += candidates;
-    stats.far_steps += far_steps;
+    ++stats->octaves_searched;
+    stats->candidates += candidates;
+    stats->far_steps += far_steps;
     // Several candidates can converge on the same spot: cv::SIFT keeps one (removeDuplicatedSorted).
     std::sort(extrema.begin() + first, extrema.end());
     extrema.erase(std::unique(extrema.begin() + first, extrema.end(),
                               [](const Extremum& a, const Extremum& b) { return a.sameSpot(b); }),
                   extrema.end());
-    const auto t1e = Clock::now();
-    stats.localise_ms += ms(t1, t1e);
-    stats.localise_cpu_ms += cpuMs(t1, t1e);
+    const auto t1e = StageTime::now();
+    stats->localise_ms += wallMs(t1, t1e);
+    stats->localise_cpu_ms += cpuMs(t1, t1e);
   }
-  stats.extrema = static_cast<int>(extrema.size());
+  return extrema;
+}
 
-  // Orientation and descriptors, in spatial order (extrema are sorted by octave, layer, row,
-  // column) so that neighbouring windows share the gradient rows in cache.
-  const int ne = static_cast<int>(extrema.size());
-  const bool size_filter = prune && (call.min_size > 0 || call.max_size < 1e30);
-  auto wanted = [&](const Kp& k) {  // size in cv::SIFT's convention (firstOctave folded in)
+/// What the keypoint stages read.
+struct KeypointStage {
+  const si::Kernels& K;
+  const Params& P;
+  const std::vector<Octave>& octaves;
+  const FastSiftCall& call;
+  bool fused;        ///< no strongest-N cut: every keypoint described with its orientation
+  bool size_filter;  ///< keypoints outside [call.min_size, call.max_size] dropped
+  /// Size in cv::SIFT's convention (firstOctave folded in).
+  bool wanted(const Kp& k) const {
     const double size = k.kp.size * 0.5f;
     return !size_filter || (size >= call.min_size && size <= call.max_size);
-  };
-  const bool fused = opt.max_features == 0;  // no strongest-N cut: describe every keypoint at once
+  }
+};
+
+/// The keypoints of extrema [b, e) into `part` (and, fused, their descriptors).
+void orientChunk(const KeypointStage& st, const std::vector<Extremum>& extrema, int b, int e, KeypointPart& part) {
+  KeypointScratch& s = keypointScratch();
+  float* rows[64];
+  for (int q = b; q < e; ++q) {
+    const Extremum& x = extrema[q];
+    const Octave& oct = st.octaves[x.octave];
+    const size_t first = part.kps.size();
+    orientations(st.K, st.P, oct, x, st.fused, s, &part.kps);
+    size_t kept = first;
+    for (size_t i = first; i < part.kps.size(); ++i)
+      if (st.wanted(part.kps[i])) part.kps[kept++] = part.kps[i];
+    part.kps.resize(kept);
+    if (!st.fused || kept == first) continue;
+    const int cnt = static_cast<int>(kept - first);
+    part.desc.resize(part.kps.size() * kDescrLen);
+    for (int i = 0; i < cnt; ++i) rows[i] = part.desc.data() + (first + i) * kDescrLen;
+    for (int i = 0; i < cnt; i += 64)
+      describeSpot(st.K, oct, &part.kps[first + i], std::min(64, cnt - i), s, rows + i);
+  }
+}
+
+/// Orientation and descriptors, in spatial order (extrema are sorted by octave, layer, row,
+/// column) so that neighbouring windows share the gradient rows in cache: the keypoints (and,
+/// fused, descriptors) in `parts`, one part per chunk of extrema.
+void orientExtrema(const KeypointStage& st, const std::vector<Extremum>& extrema, int threads,
+                   std::vector<KeypointPart>& parts) {
+  const int ne = static_cast<int>(extrema.size());
   constexpr int kChunk = 32;
   // Kept from call to call (cleared, not freed): a frame allocates nothing here once warm.
-  std::vector<KeypointPart>& parts = ws.parts;
   if (parts.size() < static_cast<size_t>((ne + kChunk - 1) / kChunk + 1)) parts.resize((ne + kChunk - 1) / kChunk + 1);
   for (KeypointPart& part : parts) {
     part.kps.clear();
     part.desc.clear();
   }
-  auto t2 = Clock::now();
-  parallelChunks(ne, threads, kChunk, [&](int b, int e) {
-    KeypointPart& part = parts[b / kChunk];
-    KeypointScratch& s = keypointScratch();
-    float* rows[64];
-    for (int q = b; q < e; ++q) {
-      const Extremum& x = extrema[q];
-      const Octave& oct = ws.octaves[x.octave];
-      const size_t first = part.kps.size();
-      orientations(K, P, oct, x, fused, s, &part.kps);
-      size_t kept = first;
-      for (size_t i = first; i < part.kps.size(); ++i)
-        if (wanted(part.kps[i])) part.kps[kept++] = part.kps[i];
-      part.kps.resize(kept);
-      if (!fused || kept == first) continue;
-      const int cnt = static_cast<int>(kept - first);
-      part.desc.resize(part.kps.size() * kDescrLen);
-      for (int i = 0; i < cnt; ++i) rows[i] = part.desc.data() + (first + i) * kDescrLen;
-      for (int i = 0; i < cnt; i += 64)
-        describeSpot(K, oct, &part.kps[first + i], std::min(64, cnt - i), s, rows + i);
-    }
-  });
-  std::vector<Kp> kps;
-  std::vector<const float*> desc_of;  // fused: each keypoint's descriptor
+  parallelChunks(ne, threads, kChunk,
+                 [&](int b, int e) { orientChunk(st, extrema, b, e, parts[b / kChunk]); });
+}
+
+/// The keypoints of all parts, in order, in cv::SIFT's convention (firstOctave = -1 folded into
+/// octave, position and size); fused: each one's descriptor in *desc_of.
+void gatherKeypoints(const std::vector<KeypointPart>& parts, bool fused, std::vector<Kp>* kps,
+                     std::vector<const float*>* desc_of) {
   for (const KeypointPart& part : parts) {
     for (size_t i = 0; i < part.kps.size(); ++i) {
-      kps.push_back(part.kps[i]);
-      if (fused) desc_of.push_back(part.desc.data() + i * kDescrLen);
+      kps->push_back(part.kps[i]);
+      if (fused) desc_of->push_back(part.desc.data() + i * kDescrLen);
     }
   }
-  // cv::SIFT's convention: firstOctave = -1 folded into octave, position and size.
-  for (Kp& k : kps) {
+  for (Kp& k : *kps) {
     k.kp.octave = (k.kp.octave & ~255) | ((k.kp.octave - 1) & 255);
     k.kp.pt *= 0.5f;
     k.kp.size *= 0.5f;
   }
+}
+
+/// Indices of kps strongest first (strongerFirst), cut to max_features when > 0.
+std::vector<int> strongestFirstOrder(const std::vector<Kp>& kps, int max_features) {
   std::vector<int> order(kps.size());
   std::iota(order.begin(), order.end(), 0);
   std::sort(order.begin(), order.end(), [&](int a, int b) { return strongerFirst(kps[a].kp, kps[b].kp); });
-  if (opt.max_features > 0 && static_cast<int>(order.size()) > opt.max_features) order.resize(opt.max_features);
+  if (max_features > 0 && static_cast<int>(order.size()) > max_features) order.resize(max_features);
+  return order;
+}
+
+/// Where each spot (same octave, layer, position, size) starts in kps[kept[...]], and kept.size().
+std::vector<int> spotStarts(const std::vector<Kp>& kps, const std::vector<int>& kept) {
+  std::vector<int> spot_start;
+  for (size_t i = 0; i < kept.size(); ++i) {
+    const Kp& k = kps[kept[i]];
+    const Kp* p = i ? &kps[kept[i - 1]] : nullptr;
+    if (!p || k.octave != p->octave || k.layer != p->layer || k.ptf_x != p->ptf_x || k.ptf_y != p->ptf_y ||
+        k.scl != p->scl)
+      spot_start.push_back(static_cast<int>(i));
+  }
+  spot_start.push_back(static_cast<int>(kept.size()));
+  return spot_start;
+}
+
+/// Descriptors of the keypoints kept (kps[order[q]] into descriptors row q), spot by spot in
+/// spatial order (kps is in that order).
+void describeKept(const KeypointStage& st, const std::vector<Kp>& kps, const std::vector<int>& order, int threads,
+                  cv::Mat* descriptors) {
   const int nk = static_cast<int>(order.size());
-  auto t4 = Clock::now();
+  std::vector<int> kept(order);
+  std::sort(kept.begin(), kept.end());
+  std::vector<int> row_of(kps.size(), -1);
+  for (int q = 0; q < nk; ++q) row_of[order[q]] = q;
+  const std::vector<int> spot_start = spotStarts(kps, kept);
+  const int ns = static_cast<int>(spot_start.size()) - 1;
+  parallelChunks(ns, threads, 32, [&](int b, int e) {
+    KeypointScratch& s = keypointScratch();
+    std::vector<Kp> group;
+    float* rows[64];
+    for (int sp = b; sp < e; ++sp) {
+      group.clear();
+      for (int i = spot_start[sp]; i < spot_start[sp + 1]; ++i) group.push_back(kps[kept[i]]);
+      const int cnt = static_cast<int>(group.size());
+      for (int i = 0; i < cnt; ++i) rows[i] = descriptors->ptr<float>(row_of[kept[spot_start[sp] + i]]);
+      for (int i = 0; i < cnt; i += 64)
+        describeSpot(st.K, st.octaves[group[0].octave], &group[i], std::min(64, cnt - i), s, rows + i);
+    }
+  });
+}
+
+}  // namespace
+
+void fastSiftDetectAndCompute(const cv::Mat& gray8, const SiftOptions& opt, const FastSiftCall& call,
+                              std::vector<cv::KeyPoint>* keypoints, cv::Mat* descriptors) {
+  CV_Assert(gray8.type() == CV_8UC1 && !gray8.empty());
+  FastSiftStats stats;
+  const si::Kernels& K = kernelsFor(call.isa);
+  const Params P = makeParams(opt);
+  Workspace& ws = workspace();
+  const bool prune = opt.max_features == 0;
+  sizeOctaves(gray8, P, call, prune, ws);
+  placeStoredLayers(P, ws);
+  const std::vector<bool> search = searchedOctaves(P, call, prune, ws.octaves.size());
+  const std::vector<Extremum> extrema = findExtrema(K, P, gray8, call, prune, search, ws, &stats);
+  stats.extrema = static_cast<int>(extrema.size());
+
+  const KeypointStage st{K, P, ws.octaves, call, /*fused=*/opt.max_features == 0,
+                         /*size_filter=*/prune && (call.min_size > 0 || call.max_size < 1e30)};
+  const auto t2 = StageTime::now();
+  orientExtrema(st, extrema, call.threads, ws.parts);
+  std::vector<Kp> kps;
+  std::vector<const float*> desc_of;  // fused: each keypoint's descriptor
+  gatherKeypoints(ws.parts, st.fused, &kps, &desc_of);
+  const std::vector<int> order = strongestFirstOrder(kps, opt.max_features);
+  const int nk = static_cast<int>(order.size());
+  const auto t4 = StageTime::now();
   descriptors->create(nk, kDescrLen, CV_32F);
-  stats.describe_ms = ms(t2, t4);
+  stats.describe_ms = wallMs(t2, t4);
   stats.describe_cpu_ms = cpuMs(t2, t4);
-  if (fused) {
+  if (st.fused) {
     for (int q = 0; q < nk; ++q) std::memcpy(descriptors->ptr<float>(q), desc_of[order[q]], kDescrLen * sizeof(float));
   } else {
-    // Descriptors of the keypoints kept, spot by spot in spatial order (kps is in that order).
-    std::vector<int> kept(order);
-    std::sort(kept.begin(), kept.end());
-    std::vector<int> row_of(kps.size(), -1);
-    for (int q = 0; q < nk; ++q) row_of[order[q]] = q;
-    std::vector<int> spot_start;
-    for (size_t i = 0; i < kept.size(); ++i) {
-      const Kp& k = kps[kept[i]];
-      const Kp* p = i ? &kps[kept[i - 1]] : nullptr;
-      if (!p || k.octave != p->octave || k.layer != p->layer || k.ptf_x != p->ptf_x ||
-          k.ptf_y != p->ptf_y || k.scl != p->scl)
-        spot_start.push_back(static_cast<int>(i));
-    }
-    spot_start.push_back(static_cast<int>(kept.size()));
-    const int ns = static_cast<int>(spot_start.size()) - 1;
-    parallelChunks(ns, threads, 32, [&](int b, int e) {
-      KeypointScratch& s = keypointScratch();
-      std::vector<Kp> group;
-      float* rows[64];
-      for (int sp = b; sp < e; ++sp) {
-        group.clear();
-        for (int i = spot_start[sp]; i < spot_start[sp + 1]; ++i) group.push_back(kps[kept[i]]);
-        const int cnt = static_cast<int>(group.size());
-        for (int i = 0; i < cnt; ++i) rows[i] = descriptors->ptr<float>(row_of[kept[spot_start[sp] + i]]);
-        for (int i = 0; i < cnt; i += 64)
-          describeSpot(K, ws.octaves[group[0].octave], &group[i], std::min(64, cnt - i), s, rows + i);
-      }
-    });
+    describeKept(st, kps, order, call.threads, descriptors);
   }
-  const auto t5 = Clock::now();
-  if (!fused) {  // the kept keypoints' descriptors
-    stats.describe_ms += ms(t4, t5);
+  const auto t5 = StageTime::now();
+  if (!st.fused) {  // the kept keypoints' descriptors
+    stats.describe_ms += wallMs(t4, t5);
     stats.describe_cpu_ms += cpuMs(t4, t5);
   }
   keypoints->resize(nk);
   for (int q = 0; q < nk; ++q) (*keypoints)[q] = kps[order[q]].kp;
-  const auto t6 = Clock::now();
-  stats.output_ms = ms(t4, t6) - (fused ? 0 : ms(t4, t5));
-  stats.output_cpu_ms = cpuMs(t4, t6) - (fused ? 0 : cpuMs(t4, t5));
+  const auto t6 = StageTime::now();
+  stats.output_ms = wallMs(t4, t6) - (st.fused ? 0 : wallMs(t4, t5));
+  stats.output_cpu_ms = cpuMs(t4, t6) - (st.fused ? 0 : cpuMs(t4, t5));
   stats.keypoints = nk;
   if (call.stats) *call.stats = stats;
 }
