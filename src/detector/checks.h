@@ -11,8 +11,8 @@
 //   3. sanity (sanity.h): distance, area, convexity;
 //   4. photometric verification (verify.h): the warped reference correlates with the scene, over
 //      the whole pattern and cell by cell (more cells for a reference with repeat periods);
-//   5. alternatives a repeat period away or at a photometric peak (periods.h, peak_search.h):
-//      a better one replaces the instance, an ambiguous one refuses it.
+//   5. alternatives a repeat period away (periods.h): a better one replaces the instance, an
+//      ambiguous one refuses it.
 // Internal to the detector library.
 #include "detector/registered_object.h"
 

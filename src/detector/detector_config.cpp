@@ -84,9 +84,6 @@ void visitFields(O& o, Visit&& v) {
   v("verify.period_ambiguity_cells", o.verify.period_ambiguity_cells);
   v("verify.period_switch_correlation", o.verify.period_switch_correlation);
   v("verify.max_feature_pose_rms_px", o.verify.max_feature_pose_rms_px);
-  v("verify.peak_search_count", o.verify.peak_search_count);
-  v("verify.peak_search_reach", o.verify.peak_search_reach);
-  v("verify.peak_search_margin", o.verify.peak_search_margin);
 }
 
 // check() names fields "<Options>.<field>"; the file names them "<section>.<field>".

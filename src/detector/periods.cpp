@@ -5,7 +5,6 @@
 
 #include "detector/checks.h"
 #include "detector/homography.h"
-#include "detector/peak_search.h"
 #include "detector/verify.h"
 
 namespace refgrasp::detector {
@@ -50,17 +49,12 @@ PeriodAmbiguity periodAmbiguity(const RegisteredObject& obj, const DetectorOptio
   PeriodAmbiguity out;
   const VerifyOptions& vo = opt.verify;
   if (vo.period_ambiguity_cells > 9) return out;
-  std::vector<Eigen::Matrix3d> moved = movedByPeriods(obj, cand.H);
-  if (moved.empty() && vo.peak_search_count == 0) return out;
+  const std::vector<Eigen::Matrix3d> moved = movedByPeriods(obj, cand.H);
+  if (moved.empty()) return out;
   const std::vector<Eigen::Vector2d> region = verificationRegion(obj, cand);
   const VerifyResult own = verifyInstance(obj.pyramid, region, scene.image, camera, cand.H, vo);
   // No alignment can have period_ambiguity_cells more strong cells than 9 - that many: nothing to try.
   if (!own.ok || own.strong_cells + vo.period_ambiguity_cells > 9) return out;
-  if (vo.peak_search_count > 0) {
-    const std::vector<Eigen::Matrix3d> peaks = photometricPeaks(obj, cand.H, region, scene.image, camera, vo);
-    moved.insert(moved.end(), peaks.begin(), peaks.end());
-  }
-  if (moved.empty()) return out;
   DenseRefineOptions wide = opt.dense;
   wide.max_corner_shift_px = 0.3 * patternDiagonal(obj, cand.H);
   if (!std::isfinite(wide.max_corner_shift_px)) return out;

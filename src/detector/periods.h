@@ -4,9 +4,8 @@
 // fits a homography that passes the other checks. Two tests look a period away:
 // - alignAcrossPeriods: the features matched again with the candidate moved by each period; a
 //   distinct alignment with a more significant consensus is offered in its place;
-// - periodAmbiguity: the instance that passed every check, moved by each period and to its
-//   photometric peaks (peak_search.h), aligned there by ECC; when one of those alignments agrees
-//   with the scene clearly better, the instance is refused, or replaced when that alignment
+// - periodAmbiguity: the instance that passed every check, moved by each period and aligned
+//   there by ECC; when one of those alignments agrees with the scene clearly better, the instance is refused, or replaced when that alignment
 //   agrees strongly everywhere (VerifyOptions::period_ambiguity_*, period_switch_correlation).
 //
 // H: undistorted reference px -> undistorted scene px. Periods are displacements in the
@@ -33,9 +32,8 @@ std::optional<MatchCandidate> alignAcrossPeriods(const RegisteredObject& obj, co
                                                  const GridIndex& grid);
 
 struct PeriodAmbiguity {
-  /// An alignment a period away (or at a photometric peak) agrees clearly better than the
-  /// instance: correlation higher by more than period_ambiguity_margin and at least
-  /// period_ambiguity_cells more strong cells.
+  /// An alignment a period away agrees clearly better than the instance: correlation higher by
+  /// more than period_ambiguity_margin and at least period_ambiguity_cells more strong cells.
   bool ambiguous = false;
   /// The best such alignment when it agrees strongly everywhere (9 strong cells, correlation >=
   /// period_switch_correlation): the caller matches the features there and checks it.

@@ -37,12 +37,6 @@ void VerifyOptions::check() const {
                   "must be in [1, 10] (10: never)");
   refgrasp::check(std::isfinite(max_feature_pose_rms_px) && max_feature_pose_rms_px > 0 && max_feature_pose_rms_px <= 1000,
                   "VerifyOptions.max_feature_pose_rms_px", "must be in (0, 1000] (1000: never)");
-  refgrasp::check(peak_search_count >= 0 && peak_search_count <= 16, "VerifyOptions.peak_search_count",
-                  "must be in [0, 16] (0: off)");
-  refgrasp::check(std::isfinite(peak_search_reach) && peak_search_reach > 0 && peak_search_reach <= 2,
-                  "VerifyOptions.peak_search_reach", "must be in (0, 2]");
-  refgrasp::check(std::isfinite(peak_search_margin) && peak_search_margin >= 0 && peak_search_margin <= 2,
-                  "VerifyOptions.peak_search_margin", "must be in [0, 2]");
   refgrasp::check(min_strong_cells >= 0 && min_strong_cells <= 9, "VerifyOptions.min_strong_cells", "must be in [0, 9]");
   refgrasp::check(periodic_min_strong_cells >= 0 && periodic_min_strong_cells <= 9,
                   "VerifyOptions.periodic_min_strong_cells", "must be in [0, 9]");

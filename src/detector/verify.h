@@ -5,7 +5,7 @@
 // blur, noise, JPEG and a residual misalignment of a pixel or two barely matter; gain and offset
 // do not matter at all), over the whole pattern and over each of its 3 x 3 cells.
 // VerifyOptions also holds the options of the rest of the verification stage (detector/checks.h):
-// re-alignment, repeat periods, photometric peaks, the spare candidate. Why each rule exists and
+// re-alignment, repeat periods, the spare candidate. Why each rule exists and
 // what it pays: docs/detector.md.
 //
 // Pixels: H maps reference px -> scene px (x_s ~ H x_r), both ideal pinhole pixels.
@@ -18,7 +18,7 @@
 namespace refgrasp::detector {
 
 struct VerifyOptions {
-  /// false: no photometric check, and none of the re-alignment, period and peak rules below.
+  /// false: no photometric check, and none of the re-alignment and period rules below.
   bool enabled = true;
   /// Refuse an instance whose warped reference correlates less than this with the scene (and
   /// count a cell as agreeing from this on: at least half the textured cells must).
@@ -41,7 +41,7 @@ struct VerifyOptions {
   /// allows the dense refinement): a dense alignment that converges but moves a corner further
   /// than DenseRefineOptions::max_corner_shift_px is refined with room to move, the features
   /// matched again there, and that candidate kept when the features and the scene support it
-  /// better. false: off, with the period and peak rules that follow it.
+  /// better. false: off, with the period rules that follow it.
   bool realign = true;
   /// A refused dense refinement re-run with room to move (half the pattern's diagonal) becomes
   /// the instance's alignment at this ECC correlation or more: few features on a small oblique
@@ -54,7 +54,7 @@ struct VerifyOptions {
   double realign_verified_correlation = 0.85;
   double realign_verified_gain = 0.08;
   int realign_verified_cells = 8;
-  /// Re-align (and run the period and peak rules) only an instance with at least this fraction
+  /// Re-align (and run the period rules) only an instance with at least this fraction
   /// of its projected pattern inside the frame: they are measured at the pattern's corners, which
   /// a close-up puts far outside it. 0: always.
   double realign_min_in_view = 0.7;
@@ -67,7 +67,7 @@ struct VerifyOptions {
   /// consensus one window off while the object comes next.
   bool spare_candidate = true;
   /// Ambiguity test (detector/periods.h periodAmbiguity): an instance that passed every check is
-  /// moved by each repeat period (and to its photometric peaks) and aligned there by ECC; when an
+  /// moved by each repeat period and aligned there by ECC; when an
   /// alignment correlates more than period_ambiguity_margin better with at least
   /// period_ambiguity_cells more strong cells, the instance is refused: a confident wrong answer
   /// is worse than a miss. > 9 cells: never.
@@ -80,14 +80,6 @@ struct VerifyOptions {
   /// A pose fitted to the matched features (the dense alignment refused) whose reprojection RMS
   /// (px) exceeds this is refused: the consensus does not come from one rigid plane. 1000: never.
   double max_feature_pose_rms_px = 1.75;
-  /// Photometric peak search (detector/peak_search.h): the best peak_search_count translations
-  /// up to peak_search_reach x the pattern's diagonal at which the warped reference correlates
-  /// more than peak_search_margin better than at the instance join the ambiguity test. A few
-  /// features on a small target can fit a homography several pixels off while a better
-  /// alignment lies beside it, out of ECC's reach. 0: off.
-  int peak_search_count = 2;
-  double peak_search_reach = 0.7;
-  double peak_search_margin = 0.05;
   /// Throws std::invalid_argument "VerifyOptions.<field>: <problem>".
   void check() const;
 };

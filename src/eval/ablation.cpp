@@ -37,7 +37,6 @@ std::vector<AblationVariant> verificationAblation() {
       {"no period re-match", "verify.period_rematch: false", [](O* o) { o->verify.period_rematch = false; }},
       {"no period ambiguity test", "verify.period_ambiguity_cells: 10",
        [](O* o) { o->verify.period_ambiguity_cells = 10; }},
-      {"no photometric peak search", "verify.peak_search_count: 0", [](O* o) { o->verify.peak_search_count = 0; }},
       {"no feature-pose RMS bound", "verify.max_feature_pose_rms_px: 1000",
        [](O* o) { o->verify.max_feature_pose_rms_px = 1000; }},
       {"no pose-gap check", "sanity.max_pose_gap_px: 1e9", [](O* o) { o->sanity.max_pose_gap_px = 1e9; }},

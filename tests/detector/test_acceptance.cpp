@@ -170,7 +170,4 @@ TEST(Acceptance, VerificationRefusesASiblingSharingALogo) {
   checks(&VerifyOptions::period_ambiguity_cells, {0, -1, 11}, 10);
   checks(&VerifyOptions::period_switch_correlation, {-1.5, 1.02, nan}, 1.01);
   checks(&VerifyOptions::max_feature_pose_rms_px, {0, -1, 1001, nan, inf}, 1000);
-  checks(&VerifyOptions::peak_search_count, {-1, 17}, 0);
-  checks(&VerifyOptions::peak_search_reach, {0, -0.5, 2.5, nan, inf}, 2);
-  checks(&VerifyOptions::peak_search_margin, {-0.01, 2.5, nan, inf}, 0);
 }
