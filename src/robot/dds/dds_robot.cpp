@@ -9,6 +9,7 @@
 #include <sstream>
 #include <thread>
 #include <type_traits>
+#include <vector>
 
 #include "core/error.h"
 #include "robot/dds/convert.h"
@@ -35,8 +36,18 @@ double steadyNow() {
 /// from the control thread (the HAL is single-threaded).
 struct Link {
   Link(const robot::EnonModel& m, const DdsRobotOptions& o, LogSink l)
-      : model(m), opt(o), topics(o.ns), arm_names(armJointNames(m)), log(std::move(l)) {
-    if (!log) log = [](const std::string& s) { std::fprintf(stderr, "%s\n", s.c_str()); };
+      : model(m), opt(o), topics(o.ns), arm_names(armJointNames(m)), log(std::move(l)) {}
+
+  /// Cyclone holds the deletion of a reliable writer that has unacknowledged data for up to its
+  /// WriterLingerDuration (1 s by default) and deletes one entity at a time. A robot that died
+  /// or froze never acknowledges the last commands of any command writer, so deleting them one
+  /// after the other would keep the caller from exiting for one linger per writer: they are
+  /// deleted side by side (one linger at most), before the participant.
+  ~Link() {
+    std::vector<std::thread> closing;
+    closing.emplace_back([this] { cmd_vel.reset(); });
+    for (auto* w : {&head, &arm, &gripper}) closing.emplace_back([w] { w->reset(); });
+    for (std::thread& t : closing) t.join();
   }
 
   bool open() {
@@ -56,18 +67,24 @@ struct Link {
       right = std::make_unique<Reader<msg::Image>>(*pp, ddsTopicName(topics.right_image),
                                                    QosProfile::sensorData());
     } catch (const DdsError& e) {
-      report(std::string("dds robot: ") + e.what());
+      fail(std::string("dds robot: ") + e.what());
       return false;
     }
     return true;
   }
 
-  /// Logs `s` once; repeated identical errors stay quiet until a different one (or success).
-  void report(const std::string& s) {
-    if (s != last_error) log(s);
+  /// An error: the hardware's lastError() (the caller reports it: one line), and the log sink
+  /// when one was given (once; repeated identical errors stay quiet until another or a success).
+  void fail(const std::string& s) {
+    if (log && s != last_error) log(s);
     last_error = s;
   }
   void clearError() { last_error.clear(); }
+  /// A problem the run survives (a skipped camera frame): the log sink, else stderr.
+  void warn(const std::string& s) {
+    if (log) log(s);
+    else std::fprintf(stderr, "%s\n", s.c_str());
+  }
 
   /// Takes the newest robot state; the age (s, steady clock) of the older of joint_states / odom.
   double pollState() {
@@ -147,7 +164,7 @@ class DdsHardware : public robot::RobotHardware {
     const double end = steadyNow() + l_->opt.connect_timeout_s;
     while (!std::isfinite(l_->pollState())) {
       if (steadyNow() > end) {
-        l_->report("dds robot: no " + std::string(!l_->js_sample ? l_->topics.joint_states
+        l_->fail("dds robot: no " + std::string(!l_->js_sample ? l_->topics.joint_states
                                                                   : l_->topics.odom) +
                    " on domain " + std::to_string(l_->opt.domain) + " within " +
                    std::to_string(l_->opt.connect_timeout_s) + " s: is the robot driver running?");
@@ -194,7 +211,7 @@ class DdsHardware : public robot::RobotHardware {
       ok = joint(l_->arm_names[static_cast<size_t>(k)], &s->arm_q_rad[k], &s->arm_qdot_radps[k]);
     const int g = indexOf(js.name, kGripperJoint);
     if (!ok || g < 0) {
-      l_->report("dds robot: " + l_->topics.joint_states +
+      l_->fail("dds robot: " + l_->topics.joint_states +
                  " lacks a joint of the model (head_pan, head_tilt, arm joints, gripper)");
       l_->sendZero(time);
       return ReturnType::kError;
@@ -207,13 +224,15 @@ class DdsHardware : public robot::RobotHardware {
     s->base_w_radps = od.twist.twist.angular.z;
     if (!s->wMb_odom.isFinite() || !s->arm_q_rad.allFinite() || !std::isfinite(s->pan_rad) ||
         !std::isfinite(s->tilt_rad)) {
-      l_->report("dds robot: non-finite robot state");
+      l_->fail("dds robot: non-finite robot state");
       l_->sendZero(time);
       return ReturnType::kError;
     }
     l_->clearError();
     return ReturnType::kOk;
   }
+
+  std::string lastError() const override { return l_->last_error; }
 
   ReturnType write(Seconds time, Seconds /*period*/, const robot::RobotCommand& cmd,
                    Seconds valid_for_s) override {
@@ -222,11 +241,12 @@ class DdsHardware : public robot::RobotHardware {
     const double age = l_->pollState();
     if (!stateFresh(age)) return ReturnType::kError;
     if (!cmd.isFinite() || cmd.arm_qdot_radps.size() != static_cast<Eigen::Index>(l_->arm_names.size())) {
+      l_->fail("dds robot: non-finite or wrong-sized command: sending zero");
       l_->sendZero(time);
       return ReturnType::kError;
     }
     if (!l_->sendCommand(time, cmd, valid_for_s)) {
-      l_->report("dds robot: cannot write commands");
+      l_->fail("dds robot: cannot write commands");
       return ReturnType::kError;
     }
     return ReturnType::kOk;
@@ -242,7 +262,7 @@ class DdsHardware : public robot::RobotHardware {
                     age, l_->model.watchdog_period_s);
     else
       std::snprintf(buf, sizeof buf, "dds robot: no robot state yet: stopping");
-    l_->report(buf);
+    l_->fail(buf);
     l_->sendZero(last_time_);
     return false;
   }
@@ -269,7 +289,7 @@ class DdsStereo : public robot::StereoSource {
       const GrayImage gl = toGray(**it->second), gr = toGray(**r->second);
       last_stamp_ = it->first;
       if (!gl.ok() || !gr.ok()) {
-        l_->report("dds robot: camera frame skipped: " + (gl.ok() ? gr.error : gl.error));
+        l_->warn("dds robot: camera frame skipped: " + (gl.ok() ? gr.error : gl.error));
         return ReturnType::kOk;
       }
       robot::StereoFrame f;

@@ -8,7 +8,9 @@
 // caller's clock must run at the real-time rate (the robot does).
 // Watchdog: read() and write() return kError (and write() sends zero commands) when the newest
 // joint_states or odom arrived longer than the model's watchdog period ago; activate() waits up
-// to connect_timeout_s for the first state. Errors are one line on the log (stderr by default).
+// to connect_timeout_s for the first state. An error is one line, returned by the hardware's
+// lastError() for the caller to report (the backend prints none itself); warnings (a camera frame
+// skipped) go to the log sink (stderr by default).
 // The stereo rig is the model's (enon.yaml): camera_info on the bus is for other consumers.
 #include <functional>
 #include <memory>
@@ -28,7 +30,8 @@ struct DdsRobotOptions {
   void check() const;
 };
 
-/// Where the backend's one-line errors go (default: stderr).
+/// Where the backend's one-line messages go: every error (also in lastError()) and warning.
+/// Default: warnings to stderr, errors only in lastError().
 using LogSink = std::function<void(const std::string&)>;
 
 /// A Robot on the DDS backend. Its hardware() and camera are DDS endpoints created at configure().
