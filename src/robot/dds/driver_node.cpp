@@ -41,14 +41,25 @@ struct RobotDriverNode::Impl {
     arm_qdot = state.arm_q_rad;
   }
 
-  /// A command part and until when (robot time) it holds.
-  Seconds validity(Seconds now, Seconds time_from_start) const {
+  /// Until when (robot time) a command part written `age` seconds ago holds: the watchdog period
+  /// (a trajectory's time_from_start if shorter) from its writing; before `now` when it is older.
+  Seconds validity(Seconds now, Seconds age, Seconds time_from_start) const {
     const Seconds wd = model.watchdog_period_s;
-    return now + (time_from_start > 0 ? std::min(time_from_start, wd) : wd);
+    return now - age + (time_from_start > 0 ? std::min(time_from_start, wd) : wd);
+  }
+
+  /// How long ago (s) the sample with source timestamp `source_ns` was written; 0 when the writer's
+  /// clock is ahead of ours. Its arrival cannot stand for its writing: a driver that stalled (a
+  /// loaded machine, a stopped process) finds commands written long before in its reader.
+  static Seconds age(int64_t source_ns) {
+    return std::max<Seconds>(0.0, static_cast<double>(dds_time() - source_ns) * 1e-9);
   }
 
   void takeCommands(Seconds now) {
-    for (auto& s : cmd_vel.takeAll()) {
+    std::vector<int64_t> src;
+    auto samples = cmd_vel.takeAll(&src);
+    for (size_t k = 0; k < samples.size(); ++k) {
+      const auto& s = samples[k];
       ++stats.commands;
       const double v = s->linear.x, w = s->angular.z;
       if (!std::isfinite(v) || !std::isfinite(w)) {
@@ -57,9 +68,11 @@ struct RobotDriverNode::Impl {
       }
       base_v = v;
       base_w = w;
-      base_until = validity(now, 0);
+      base_until = validity(now, age(src[k]), 0);
     }
-    for (auto& s : head.takeAll()) {
+    auto heads = head.takeAll(&src);
+    for (size_t k = 0; k < heads.size(); ++k) {
+      const auto& s = heads[k];
       ++stats.commands;
       const msg::JointTrajectory& t = *s;
       if (t.points._length < 1) {
@@ -78,9 +91,11 @@ struct RobotDriverNode::Impl {
       head_mode = pos ? robot::HeadMode::kPosition : robot::HeadMode::kVelocity;
       head_pan = p;
       head_tilt = q;
-      head_until = validity(now, pos ? 0 : fromRosDuration(pt.time_from_start));
+      head_until = validity(now, age(src[k]), pos ? 0 : fromRosDuration(pt.time_from_start));
     }
-    for (auto& s : arm.takeAll()) {
+    auto arms = arm.takeAll(&src);
+    for (size_t k = 0; k < arms.size(); ++k) {
+      const auto& s = arms[k];
       ++stats.commands;
       const msg::JointTrajectory& t = *s;
       if (t.points._length < 1 || t.points._buffer[0].velocities._length != t.joint_names._length) {
@@ -100,7 +115,7 @@ struct RobotDriverNode::Impl {
         continue;
       }
       arm_qdot = qd;
-      arm_until = validity(now, fromRosDuration(pt.time_from_start));
+      arm_until = validity(now, age(src[k]), fromRosDuration(pt.time_from_start));
     }
     for (auto& s : gripper.takeAll()) {
       ++stats.commands;

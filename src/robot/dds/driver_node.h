@@ -7,7 +7,11 @@
 // clock); take the newest commands and write them to the hardware; every 1 / camera_rate_hz grab a
 // stereo frame and publish left/right image_raw (mono8) and camera_info (stamped at capture).
 // Each command is dropped when it gets older than the watchdog period (for a trajectory: its
-// time_from_start, if shorter), counted from its arrival: a silent controller stops the robot.
+// time_from_start, if shorter), counted from its writing (the sample's source timestamp), not its
+// arrival: a silent controller stops the robot, and a driver that stalled does not take a
+// command that waited in its reader for new. Across machines the controller's and the robot's
+// clocks must agree to well within the watchdog period (NTP, chrony); a controller clock ahead
+// of the robot's counts as age 0.
 #include <atomic>
 #include <memory>
 #include <string>

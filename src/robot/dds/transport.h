@@ -168,8 +168,11 @@ class Reader : public Endpoint {
   dds_entity_t condition() const { return cond_; }
 
   /// Takes every available sample, oldest first (invalid samples, i.e. disposals, are skipped).
-  std::vector<Sample<T>> takeAll() const {
+  /// source_ns, when given, receives each sample's source timestamp in the same order: the
+  /// writer's clock when it wrote the sample (ns since the Unix epoch, as dds_time()).
+  std::vector<Sample<T>> takeAll(std::vector<int64_t>* source_ns = nullptr) const {
     std::vector<Sample<T>> out;
+    if (source_ns) source_ns->clear();
     constexpr int kBatch = 16;
     for (;;) {
       Sample<T> batch[kBatch];
@@ -178,8 +181,11 @@ class Reader : public Endpoint {
       for (int i = 0; i < kBatch; ++i) ptrs[i] = batch[i].get();
       const dds_return_t n = dds_take(ent_, ptrs, info, kBatch, kBatch);
       if (n <= 0) break;
-      for (int i = 0; i < n; ++i)
-        if (info[i].valid_data) out.push_back(std::move(batch[i]));
+      for (int i = 0; i < n; ++i) {
+        if (!info[i].valid_data) continue;
+        out.push_back(std::move(batch[i]));
+        if (source_ns) source_ns->push_back(info[i].source_timestamp);
+      }
       if (n < kBatch) break;
     }
     return out;

@@ -2,7 +2,8 @@
 // dds) on loopback in a private domain and namespace, watched by a listener in this process:
 //   - the robot node killed (SIGKILL) or frozen (SIGSTOP) mid-approach: enon_grasp sends zero
 //     commands to every actuator within the watchdog period and exits 3 with one line;
-//   - enon_grasp killed mid-run: the node's watchdog stops the simulated robot.
+//   - enon_grasp killed mid-run: the node's watchdog stops the simulated robot;
+//   - a driver that stalled (or was stopped) does not take a command that waited in its reader.
 // REFGRASP_DDS_FAULT_RUNS=N repeats each fault N times (default 1) and prints one
 // "dds_fault: ..." line per run: the numbers of docs/results.md "DDS faults".
 #include <gtest/gtest.h>
@@ -21,9 +22,12 @@
 #include "common/temp_dir.h"
 #include "dds_test_util.h"
 #include "robot/dds/convert.h"
+#include "robot/dds/driver_node.h"
 #include "robot/dds/robot_topics.h"
 #include "robot/dds/transport.h"
 #include "robot/enon_model.h"
+#include "robot/sim/scenario.h"
+#include "robot/sim/sim_enon.h"
 
 using nlohmann::json;
 using refgrasp::testing::Subprocess;
@@ -318,4 +322,45 @@ TEST_F(DdsFaults, EnonGraspKilledMidRunTheRobotNodeStopsTheRobotWithinTheWatchdo
     const json truth = json::parse(in);
     EXPECT_EQ(truth["bad_commands"], 0);
   }
+}
+
+// The driver's watchdog counts a command's age from its writing, not from when the driver takes
+// it: a driver that stalls longer than the watchdog period (here: not stepped for 0.5 s; a
+// stopped or starved process alike) drops the command that waited in its reader, and the robot
+// does not move; a command taken at once moves it.
+TEST_F(DdsFaults, ACommandThatWaitedInAStalledDriverIsNotTaken) {
+  const refgrasp::robot::EnonModel model = refgrasp::robot::loadEnonModel(kEnon);
+  refgrasp::sim::SimEnon sim(model, refgrasp::sim::loadScenario(kScenario));
+  dds::DriverNodeOptions o;
+  o.domain = domain_;
+  o.ns = ns_;
+  dds::RobotDriverNode node(model, sim, nullptr, o);
+  ASSERT_EQ(node.start(), refgrasp::robot::ReturnType::kOk);
+  dds::Participant pp(domain_);
+  dds::Writer<dds::msg::Twist> cmd(pp, dds::ddsTopicName(dds::RobotTopics(ns_).cmd_vel),
+                                   dds::QosProfile::reliable(1));
+  ASSERT_TRUE(cmd.waitForMatch(1, 30));
+  dds::msg::Twist tw{};
+  tw.linear.x = 0.3;
+  const double dt = model.control_period_s;
+  double t = 0;
+  node.step(t);
+  auto stepFor = [&](double seconds) {
+    for (const double end = t + seconds; t < end;) node.step(t += dt);
+  };
+
+  ASSERT_TRUE(cmd.write(tw));
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));  // in the reader, not taken
+  t += 0.5;
+  stepFor(0.5);
+  EXPECT_EQ(node.stats().commands, 1) << "the command did not reach the driver";
+  EXPECT_NEAR(sim.trueBasePose().x_m, 0.0, 1e-12) << "the robot moved on a 0.5 s old command";
+
+  ASSERT_TRUE(cmd.write(tw));
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  stepFor(0.5);
+  // Taken at the next step: it moves the robot, for at most the watchdog period from its writing.
+  EXPECT_GT(sim.trueBasePose().x_m, 0.3 * dt);
+  EXPECT_LE(sim.trueBasePose().x_m, 0.3 * (model.watchdog_period_s + dt) + 1e-9);
+  node.stop(t);
 }
