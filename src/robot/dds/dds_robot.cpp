@@ -36,7 +36,7 @@ double steadyNow() {
 struct Link {
   Link(const robot::EnonModel& m, const DdsRobotOptions& o, LogSink l)
       : model(m), opt(o), topics(o.ns), arm_names(armJointNames(m)), log(std::move(l)) {
-    if (!log) log = [](const std::string& s) { std::fprintf(stderr, "%s\n", s.c_str()); };
+    if (!log) log = [](const std::string&) {};
   }
 
   bool open() {
@@ -141,6 +141,7 @@ class DdsHardware : public robot::RobotHardware {
   explicit DdsHardware(std::shared_ptr<Link> link) : l_(std::move(link)) {}
 
   ReturnType configure() override { return l_->open() ? ReturnType::kOk : ReturnType::kError; }
+  std::string lastError() const override { return l_->last_error; }
 
   ReturnType activate() override {
     if (!l_->pp) return ReturnType::kError;

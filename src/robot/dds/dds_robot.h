@@ -28,7 +28,8 @@ struct DdsRobotOptions {
   void check() const;
 };
 
-/// Where the backend's one-line errors go (default: stderr).
+/// Where the backend's one-line errors also go, once each (default: nowhere; the hardware's
+/// lastError() holds the latest, and the caller reports it as its one line).
 using LogSink = std::function<void(const std::string&)>;
 
 /// A Robot on the DDS backend. Its hardware() and camera are DDS endpoints created at configure().
