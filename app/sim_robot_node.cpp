@@ -48,8 +48,8 @@ int simRobotNode(int argc, char** argv) {
   app.add_option("--scenario", scenario_file, "scenario YAML (config/scenarios/)")->required();
   app.add_option("--enon", enon, "robot model")->capture_default_str();
   app.add_option("--ns", opt.ns, "ROS namespace of the robot's topics")->capture_default_str();
-  auto* domain_opt = app.add_option("--domain", opt.domain, "DDS domain id, 0..232 (default: $ROS_DOMAIN_ID, else 0)")
-                         ->check(tool::Integer(0, dds::kMaxDomainId));
+  // Range checked below (dds::domainOrNamespaceProblem); CLI11 refuses what an int cannot hold.
+  auto* domain_opt = app.add_option("--domain", opt.domain, "DDS domain id, 0..232 (default: $ROS_DOMAIN_ID, else 0)");
   app.add_option("--camera-rate", opt.camera_rate_hz,
                  "stereo frames published per second at most (0: the camera's rate, 48 Hz)")
       ->check(tool::Finite(0, 1000))

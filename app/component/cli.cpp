@@ -57,8 +57,8 @@ int runVisionComponent(int argc, char** argv) {
       ->expected(1)
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   app.add_option("--ns", ns, "ROS namespace of the topics and the service")->capture_default_str();
-  auto* domain_opt = app.add_option("--domain", domain, "DDS domain id, 0..232 (default: $ROS_DOMAIN_ID, else 0)")
-                         ->check(tool::Integer(0, dds::kMaxDomainId));
+  // Range checked below (dds::domainOrNamespaceProblem); CLI11 refuses what an int cannot hold.
+  auto* domain_opt = app.add_option("--domain", domain, "DDS domain id, 0..232 (default: $ROS_DOMAIN_ID, else 0)");
   app.add_option("--stereo", rig_file,
                  "stereo rig YAML: pair <ns>/left and <ns>/right by stamp and fuse (the rig gives "
                  "right_in_left; intrinsics come from camera_info)");
