@@ -475,6 +475,17 @@ TEST(HostileStartup, ADdsRobotThatNeverAnswersIsOneLineAndASignalEndsTheWaitAtOn
   }
 }
 
+TEST(HostileStartup, ASignalMidRunStopsTheRobotAndIsOneLine) {
+  // A vision run on the simulator takes seconds of CPU: SIGINT after 2.5 s finds it running (or,
+  // on a loaded machine, still starting): one line, 130, the robot stopped by the controller.
+  const auto t0 = std::chrono::steady_clock::now();
+  const AppRun r = runWith("timeout --preserve-status -k 10 -s INT 2.5", "enon_grasp",
+                           "--backend sim --enon " + kEnon + " --scenario " + kScenario);
+  const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  expectOneLine(r, 130, "enon_grasp: interrupted by SIGINT", "SIGINT mid-run");
+  EXPECT_LT(took, 4.5);
+}
+
 TEST(HostileLibraryMessages, CycloneLibpngAndFfmpegNeverPrintTheirOwnLines) {
   // Cyclone DDS: an unknown element in the configuration; our line names it, alone.
   const std::string xml = "'<CycloneDDS><Domain><General><NoSuchSetting/></General></Domain></CycloneDDS>'";
