@@ -104,6 +104,13 @@ EnonGraspResult runEnonGraspSession(const EnonGraspOptions& o, std::FILE* progre
   if (!o.camera.empty() && o.backend == "sim")
     throw ConfigError("command line", "--camera",
                       "needs a robot backend other than sim (the simulator renders its own camera)");
+  // The log and the video never write over an object definition the scenario names (the command
+  // line's own paths are checked by the caller).
+  tool::Paths paths;
+  for (const sim::SimObject& obj : scenario.world.objects) paths.input("the scenario's object", obj.definition);
+  paths.outputFolder("--log", o.log_dir);
+  paths.output("--video", o.video);
+  paths.check();
   // The camera first: "no camera found" before anything moves.
   std::unique_ptr<robot::StereoSource> camera;
   if (!o.camera.empty()) {

@@ -375,6 +375,13 @@ TEST(HostileDataLoss, NoToolWritesOverOneOfItsInputsWhateverTheName) {
   expectOneLine(run("sim_robot_node", "--enon " + kEnon + " --scenario " + scenario + " --result " + scenario), 2,
                 "--result " + scenario + ": is the input --scenario", "sim_robot_node --result");
   EXPECT_EQ(readFile(scenario), scenario_text);
+  // enon_grasp: an object definition that the scenario names.
+  const std::string target = objectFile("loss/target.yaml", kPose), target_text = readFile(target);
+  const std::string named = scenarioWith("loss_named", "definition: " + kSource + "/config/objects/cereal_box.yaml",
+                                         "definition: " + target);
+  expectOneLine(run("enon_grasp", kGraspBase + named + " --video " + (ph / "." / "target.yaml").string()), 2,
+                ": is the input the scenario's object " + target, "enon_grasp --video over the target's definition");
+  EXPECT_EQ(readFile(target), target_text);
 }
 
 TEST(HostileNumbers, IntegerOptionsAreRangeCheckedNeverWrapped) {
