@@ -108,12 +108,13 @@ int record(int argc, char** argv) {
   };
   const files::RecordResult r = files::recordFrames(src, *writer, limits, g_stop, error, progress);
   if (tty && last_print >= 0) std::cerr << "\n";
-  std::cerr << "record: " << r.frames << " frames in " << out << (r.stopped ? " (interrupted)" : "")
-            << "\n";
+  // A failed write is its one line (the recording reads up to the frame before, as documented).
   if (!r.write_error.empty()) {
-    std::cerr << r.write_error << "\n";
+    std::cerr << "record: " << r.write_error << "\n";
     return 3;
   }
+  std::cerr << "record: " << r.frames << " frames in " << out << (r.stopped ? " (interrupted)" : "")
+            << "\n";
   return r.frame_errors > 0 || r.source_failed ? 1 : 0;
 }
 
