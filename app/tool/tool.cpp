@@ -1,5 +1,11 @@
 #include "tool/tool.h"
 
+#include <dds/ddsrt/log.h>
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <atomic>
 #include <cctype>
 #include <cerrno>
 #include <cmath>
@@ -17,13 +23,6 @@
 #include <opencv2/imgcodecs.hpp>
 #include <sstream>
 #include <system_error>
-
-#include <dds/ddsrt/log.h>
-#include <fcntl.h>
-#include <sys/stat.h>
-#include <unistd.h>
-
-#include <atomic>
 
 #include "core/error.h"
 #include "core/file.h"

@@ -3,24 +3,24 @@
 //   tool::run()        one top-level handler: any exception becomes ONE line "<tool>: <problem>"
 //                      on stderr and the tool's documented exit code; stdout is flushed and a
 //                      failed write (a full disk, a closed pipe) is an error, never a silent loss;
-//                      OpenCV's logger and FFmpeg's messages are silenced first.
+//                      OpenCV's logger, FFmpeg's and Cyclone DDS's messages are silenced first.
 //   tool::parse()      CLI11 parsing: --help exits 0, a parse error is one line and the
 //                      "bad input" code (never CLI11's own 104-114).
 //   tool::StopOnError  stops the robot when its scope is left by an exception, before the line.
 //   tool::Finite       a numeric option check that refuses NaN and inf (CLI::Range lets NaN in).
 //   tool::Integer      an integer option check: decimal, in range, never wrapped (CLI11 parses
-//                      an unsigned 64-bit option past its range without an error).
+//                      an unsigned or 64-bit option past its range without an error).
 //   tool::Paths        outputs checked against inputs before anything is written: a tool never
 //                      writes over one of its own inputs, whatever the names (links included).
 //   tool::checkDdsEnvironment   ROS_DOMAIN_ID and CYCLONEDDS_URI checked before Cyclone sees them.
 //   tool::exitOnSignal / flagOnSignal   start-up that SIGINT/SIGTERM interrupt at once.
-// tool::run() also silences Cyclone DDS's logger; tool::parse() checks REFGRASP_MAX_IMAGE_PIXELS.
+// tool::parse() also checks REFGRASP_MAX_IMAGE_PIXELS (every tool).
 //
 // A tool's main is one line:  int main(int argc, char** argv) { return tool::run("x", argc, argv, body); }
 #include <CLI/CLI.hpp>
+#include <cstdint>
 #include <functional>
 #include <opencv2/core.hpp>
-#include <cstdint>
 #include <string>
 #include <vector>
 
