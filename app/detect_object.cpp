@@ -65,14 +65,14 @@ int detectObject(int argc, char** argv) {
   app.add_option("--stereo", rig_file, "stereo rig YAML (left/right cameras, right_in_left)");
   CLI::Option* o_instances =
       app.add_option("--max-instances", cli.match.max_instances, "instances reported per object")
-          ->check(CLI::Range(1, 100));
+          ->check(tool::Integer(1, 100));
   CLI::Option* o_ratio = app.add_option("--ratio", cli.match.global_ratio, "global descriptor ratio test")
                              ->check(tool::Finite(0.1, 1.0));
   CLI::Option* o_features =
       app.add_option("--max-features", cli.sift.max_features, "scene SIFT features kept (0 = all)")
-          ->check(CLI::NonNegativeNumber);
+          ->check(tool::Integer(0, INT32_MAX));
   CLI::Option* o_inliers = app.add_option("--min-inliers", cli.match.min_inliers, "homography inliers needed")
-                               ->check(CLI::Range(4, 100000));
+                               ->check(tool::Integer(4, 100000));
   app.add_option("IMAGE", images, "scene image(s) (left images with --stereo)")->required();
   tool::parse(app, argc, argv);
 

@@ -429,8 +429,7 @@ int makeMedia(int argc, char** argv) {
     tool::makeOutputDir(p.parent_path().string());
     const cv::Mat img = it.make();
     CV_Assert(img.type() == CV_8UC1);
-    if (!cv::imwrite(p.string(), img, {cv::IMWRITE_PNG_COMPRESSION, 9}))
-      throw OutputError(p.string(), "cannot write the texture");
+    tool::writeImage(p.string(), img, {cv::IMWRITE_PNG_COMPRESSION, 9});
     total += fs::file_size(p);
     std::cout << "wrote " << p.string() << " (" << img.cols << "x" << img.rows << ", "
               << fs::file_size(p) / 1024 << " KiB)\n";

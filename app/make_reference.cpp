@@ -66,7 +66,8 @@ int makeReference(int argc, char** argv) {
   auto* a = app.add_option("--apriltag", family, "tag family (36h11, 25h9, 16h5, circle21h7)");
   auto* t = app.add_option("--tag-size", tag_size, "side of the tag's black square (metres)")
                 ->check(tool::Finite(1e-4, 100));
-  app.add_option("--tag-id", tag_id, "the tag to use when the photo shows several");
+  app.add_option("--tag-id", tag_id, "the tag to use when the photo shows several (-1: the only one)")
+      ->check(tool::Integer(-1, INT32_MAX));
   app.add_option("--region", region, "u,v,u,v,...: pattern region polygon (px; default: photo minus tag)");
   c->needs(s);
   s->needs(c);
@@ -80,6 +81,12 @@ int makeReference(int argc, char** argv) {
   }
   if (name.empty()) name = fs::path(output).stem().string();
   if (check.empty()) check = fs::path(output).replace_extension(".png").string();
+  tool::Paths paths;
+  paths.input("--image", photo_file);
+  paths.input("--camera", camera_file);
+  paths.output("--output", output);
+  paths.output("--check", check);
+  paths.check();
   try {
     const Intrinsics cam = loadCameraFile(camera_file);
     const ImageRead read = readImage(photo_file, ImageMode::kColor);

@@ -107,6 +107,13 @@ int poseReplay(int argc, char** argv) {
   detector_cli.add(app);
   tool::parse(app, argc, argv);
   const bool stereo = !rig_file.empty();
+  tool::Paths paths;
+  for (const std::string& f : object_files) paths.input("--object", f);
+  paths.input("--camera", camera_file);
+  paths.input("--stereo", rig_file);
+  paths.inputSpec("--input", input);
+  paths.outputFolder("--output", outdir);
+  paths.check();
 
   std::unique_ptr<detector::Detector> det;
   robot::OpenedSource src;

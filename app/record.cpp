@@ -45,13 +45,22 @@ int record(int argc, char** argv) {
       ->expected(1)
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   app.add_option("--frames", limits.max_frames, "stop after N frames (0 = until the source ends)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(tool::Integer(0, INT64_MAX));
   app.add_option("--seconds", limits.max_seconds, "stop after S seconds of wall-clock time (0 = no limit)")
       ->check(tool::Finite(0, 1e9));
   app.add_option("--png-compression", ro.png_compression, "PNG level 0-9 (lossless at every level)")
-      ->check(CLI::Range(0, 9));
+      ->check(tool::Integer(0, 9));
   app.add_flag("--no-fsync", no_fsync, "do not fsync each frame (survives a killed recorder, not a power loss)");
   tool::parse(app, argc, argv);
+
+  tool::Paths paths;
+  paths.inputSpec("--source", spec);
+  paths.input("--camera", camera_file);
+  paths.input("--stereo", rig_file);
+  for (const std::string& kv : sets)
+    if (kv.rfind("config=", 0) == 0) paths.input("--set config", kv.substr(7));
+  paths.outputFolder("--output", out);
+  paths.check();
 
   std::signal(SIGINT, onSignal);
   std::signal(SIGTERM, onSignal);
@@ -99,12 +108,13 @@ int record(int argc, char** argv) {
   };
   const files::RecordResult r = files::recordFrames(src, *writer, limits, g_stop, error, progress);
   if (tty && last_print >= 0) std::cerr << "\n";
-  std::cerr << "record: " << r.frames << " frames in " << out << (r.stopped ? " (interrupted)" : "")
-            << "\n";
+  // A failed write is its one line (the recording reads up to the frame before, as documented).
   if (!r.write_error.empty()) {
-    std::cerr << r.write_error << "\n";
+    std::cerr << "record: " << r.write_error << "\n";
     return 3;
   }
+  std::cerr << "record: " << r.frames << " frames in " << out << (r.stopped ? " (interrupted)" : "")
+            << "\n";
   return r.frame_errors > 0 || r.source_failed ? 1 : 0;
 }
 

@@ -117,9 +117,14 @@ int simEnonDemo(int argc, char** argv) {
       ->check(tool::Finite(1e-3, 3600))
       ->capture_default_str();
   app.add_option("--png-every", every, "write every N-th delivered frame")
-      ->check(CLI::Range(int64_t{1}, int64_t{1} << 40))
+      ->check(tool::Integer(1, int64_t{1} << 40))
       ->capture_default_str();
   tool::parse(app, argc, argv);
+  tool::Paths paths;
+  paths.input("--enon", enon);
+  paths.input("--scenario", scenario);
+  paths.outputFolder("--out", out);
+  paths.check();
   return run(enon, scenario, out, duration, every);
 }
 

@@ -43,13 +43,13 @@ int simRobotNode(int argc, char** argv) {
   CLI::App app(kDescription, "sim_robot_node");
   std::string enon = "config/enon.yaml", scenario_file, result_file;
   dds::DriverNodeOptions opt;
-  if (const char* d = std::getenv("ROS_DOMAIN_ID"); d && *d) opt.domain = std::atoi(d);
   double duration_s = 0;
   opt.camera_rate_hz = 15;
   app.add_option("--scenario", scenario_file, "scenario YAML (config/scenarios/)")->required();
   app.add_option("--enon", enon, "robot model")->capture_default_str();
   app.add_option("--ns", opt.ns, "ROS namespace of the robot's topics")->capture_default_str();
-  app.add_option("--domain", opt.domain, "DDS domain id, 0..232 (default: $ROS_DOMAIN_ID, else 0)");
+  // Range checked below (dds::domainOrNamespaceProblem); CLI11 refuses what an int cannot hold.
+  auto* domain_opt = app.add_option("--domain", opt.domain, "DDS domain id, 0..232 (default: $ROS_DOMAIN_ID, else 0)");
   app.add_option("--camera-rate", opt.camera_rate_hz,
                  "stereo frames published per second at most (0: the camera's rate, 48 Hz)")
       ->check(tool::Finite(0, 1000))
@@ -58,6 +58,18 @@ int simRobotNode(int argc, char** argv) {
       ->check(tool::Finite(0, 1e7));
   app.add_option("--result", result_file, "write the ground truth at exit to this JSON file");
   tool::parse(app, argc, argv);
+  const int env_domain = tool::checkDdsEnvironment();
+  if (!*domain_opt) opt.domain = env_domain;
+  tool::Paths paths;
+  paths.input("--enon", enon);
+  paths.input("--scenario", scenario_file);
+  paths.output("--result", result_file);
+  paths.check();
+  if (!result_file.empty())
+    if (const std::string p = tool::outputFileProblem(result_file); !p.empty())
+      throw std::invalid_argument("--result " + result_file + ": " + p);
+  // Until the node serves, a signal ends the tool at once (the robot has not moved yet).
+  tool::exitOnSignal();
   if (const std::string p = dds::domainOrNamespaceProblem(opt.domain, opt.ns); !p.empty()) {
     std::fprintf(stderr, "sim_robot_node: %s\n", p.c_str());
     return 2;
@@ -80,7 +92,7 @@ int simRobotNode(int argc, char** argv) {
   try {
     node = std::make_unique<dds::RobotDriverNode>(model, *sim, camera.get(), opt);
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "sim_robot_node: %s\n", e.what());
+    std::fprintf(stderr, "sim_robot_node: %s\n", tool::withDdsError(e.what()).c_str());
     return 3;
   }
   std::signal(SIGINT, onSignal);

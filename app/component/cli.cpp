@@ -52,13 +52,13 @@ int runVisionComponent(int argc, char** argv) {
   std::vector<std::string> object_files;
   std::string ns = "/refgrasp", rig_file, detector_config;
   int domain = 0;
-  if (const char* d = std::getenv("ROS_DOMAIN_ID"); d && *d) domain = std::atoi(d);
   app.add_option("--object", object_files, "object definition YAML (repeat for several objects)")
       ->required()
       ->expected(1)
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   app.add_option("--ns", ns, "ROS namespace of the topics and the service")->capture_default_str();
-  app.add_option("--domain", domain, "DDS domain id, 0..232 (default: $ROS_DOMAIN_ID, else 0)");
+  // Range checked below (dds::domainOrNamespaceProblem); CLI11 refuses what an int cannot hold.
+  auto* domain_opt = app.add_option("--domain", domain, "DDS domain id, 0..232 (default: $ROS_DOMAIN_ID, else 0)");
   app.add_option("--stereo", rig_file,
                  "stereo rig YAML: pair <ns>/left and <ns>/right by stamp and fuse (the rig gives "
                  "right_in_left; intrinsics come from camera_info)");
@@ -69,6 +69,10 @@ int runVisionComponent(int argc, char** argv) {
                "the robot's pipeline: a detection confirmed by the next one, then tracked between "
                "detections, so poses come out at the camera's rate");
   tool::parse(app, argc, argv);
+  const int env_domain = tool::checkDdsEnvironment();
+  if (!*domain_opt) domain = env_domain;
+  // Until the component serves (objects loaded, participant created), a signal ends it at once.
+  tool::exitOnSignal();
   if (const std::string p = dds::domainOrNamespaceProblem(domain, ns); !p.empty()) {
     std::fprintf(stderr, "vision_component: %s\n", p.c_str());
     return 2;
@@ -93,15 +97,15 @@ int runVisionComponent(int argc, char** argv) {
     std::fprintf(stderr, "vision_component: %s\n", e.what());
     return 2;
   }
-  std::signal(SIGINT, onSignal);
-  std::signal(SIGTERM, onSignal);
   std::unique_ptr<VisionComponent> c;
   try {
     c = std::make_unique<VisionComponent>(std::move(det), opt);
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "vision_component: %s\n", e.what());
+    std::fprintf(stderr, "vision_component: %s\n", tool::withDdsError(e.what()).c_str());
     return 3;
   }
+  std::signal(SIGINT, onSignal);
+  std::signal(SIGTERM, onSignal);
   std::fprintf(stderr, "vision_component: serving %s on DDS domain %d (%zu object%s, %s%s)\n",
                dds::joinRosName(ns, "detect").c_str(), domain, object_files.size(),
                object_files.size() == 1 ? "" : "s", opt.stereo ? "stereo" : "mono", track ? ", tracking" : "");

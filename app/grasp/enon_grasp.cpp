@@ -4,6 +4,7 @@
 
 #include <CLI/CLI.hpp>
 #include <chrono>
+#include <csignal>
 #include <cmath>
 #include <cstdlib>
 #include <memory>
@@ -103,6 +104,13 @@ EnonGraspResult runEnonGraspSession(const EnonGraspOptions& o, std::FILE* progre
   if (!o.camera.empty() && o.backend == "sim")
     throw ConfigError("command line", "--camera",
                       "needs a robot backend other than sim (the simulator renders its own camera)");
+  // The log and the video never write over an object definition the scenario names (the command
+  // line's own paths are checked by the caller).
+  tool::Paths paths;
+  for (const sim::SimObject& obj : scenario.world.objects) paths.input("the scenario's object", obj.definition);
+  paths.outputFolder("--log", o.log_dir);
+  paths.output("--video", o.video);
+  paths.check();
   // The camera first: "no camera found" before anything moves.
   std::unique_ptr<robot::StereoSource> camera;
   if (!o.camera.empty()) {
@@ -151,11 +159,13 @@ EnonGraspResult runEnonGraspSession(const EnonGraspOptions& o, std::FILE* progre
   if (robot->configure() != robot::ReturnType::kOk || robot->activate() != robot::ReturnType::kOk) {
     r.exit_code = kExitRobotError;
     const std::string why = robot->hardware().lastError();
-    r.error = "could not start the robot (backend " + o.backend + ")" + (why.empty() ? "" : ": " + why);
+    // The backend's own line names the cause (no state from the driver, a bad participant).
+    r.error = tool::withDdsError(why.empty() ? "could not start the robot (backend " + o.backend + ")" : why);
     r.summary = summaryLine(r);
     return r;
   }
   const tool::StopOnError stop_on_error([&] { robot->stop(); });  // an exception in the loop
+  if (o.interruptible) tool::flagOnSignal();
   servo::GraspController ctl(*robot, *est, goal.oMg, centre, o.grasp);
   const double dt = model.control_period_s;
   const double max_time = o.max_time_s > 0 ? o.max_time_s : scenario.max_duration_s;
@@ -165,6 +175,12 @@ EnonGraspResult runEnonGraspSession(const EnonGraspOptions& o, std::FILE* progre
   std::string output_error;
   for (int64_t k = 0; !ctl.finished(); ++k) {
     t = static_cast<double>(k) * dt;
+    if (o.interruptible && tool::interruptedBy()) {
+      const int sig = tool::interruptedBy();
+      r.error = std::string("interrupted by ") + (sig == SIGINT ? "SIGINT" : "SIGTERM") + " (robot stopped)";
+      r.exit_code = tool::interruptedCode(sig);
+      break;
+    }
     if (t > max_time) {
       ctl.abort(t, "timeout", "the run took longer than " + std::to_string(max_time) + " s");
       break;
@@ -200,7 +216,9 @@ EnonGraspResult runEnonGraspSession(const EnonGraspOptions& o, std::FILE* progre
     r.final_position_mm = 1000 * r.report.close_position_error_m;
     r.final_rotation_deg = r.report.close_rotation_error_rad * 180 / M_PI;
   }
-  if (!output_error.empty()) {
+  if (r.exit_code > kExitOutput) {
+    // interrupted: the code and line set in the loop
+  } else if (!output_error.empty()) {
     r.exit_code = kExitOutput;
     r.error = output_error;
   } else if (!r.error.empty()) {
@@ -236,8 +254,8 @@ int enonGraspMain(int argc, char** argv) {
                  "scenario YAML: the world (sim) and the target's definition and grasp frame")
       ->required();
   app.add_option("--enon", o.enon, "robot model YAML")->capture_default_str();
-  auto* seed_opt = app.add_option("--seed", seed, "overrides the scenario's seed")
-                       ->check(CLI::NonNegativeNumber);
+  auto* seed_opt = app.add_option("--seed", seed, "overrides the scenario's seed (0 to 2^64-1)")
+                       ->check(tool::Unsigned());
   app.add_flag("--oracle", o.oracle,
                "feed the controller the simulator's ground-truth pose instead of vision");
   app.add_option("--log", o.log_dir,
@@ -259,22 +277,41 @@ int enonGraspMain(int argc, char** argv) {
                  "bb2: the camera's YAML (guid, frame_rate_hz, shutter_s, gain_db, dma_buffers)");
   std::string ns = "/enon";
   int domain = 0;
-  if (const char* d = std::getenv("ROS_DOMAIN_ID"); d && *d) domain = std::atoi(d);
   app.add_option("--ns", ns, "dds: ROS namespace of the robot's topics")->capture_default_str();
   auto* domain_opt =
-      app.add_option("--domain", domain, "dds: DDS domain id (default: $ROS_DOMAIN_ID, else 0)");
+      app.add_option("--domain", domain, "dds: DDS domain id (default: $ROS_DOMAIN_ID, else 0)")
+          ->check(tool::Integer(0, 232));
   tool::parse(app, argc, argv);
   if (*seed_opt) o.seed = seed;
   if (!camera_config.empty()) {
     if (o.camera.empty()) throw std::invalid_argument("--camera-config: only with --camera");
     o.camera_settings["config"] = camera_config;
   }
+  tool::Paths paths;
+  paths.input("--scenario", o.scenario);
+  paths.input("--enon", o.enon);
+  paths.input("--detector-config", o.detector_config);
+  paths.input("--camera-config", camera_config);
+  paths.inputSpec("--camera", o.camera);
+  paths.outputFolder("--log", o.log_dir);
+  paths.output("--video", o.video);
+  paths.check();
+  // Checked now: FFmpeg, opening the video at the first frame, would blame a missing encoder.
+  if (!o.video.empty())
+    if (const std::string p = tool::outputFileProblem(o.video); !p.empty())
+      throw std::invalid_argument("--video " + o.video + ": " + p);
   if (o.backend != "sim") {
+    const int env_domain = tool::checkDdsEnvironment();
+    if (!*domain_opt) domain = env_domain;
     o.backend_params["ns"] = ns;
     o.backend_params["domain"] = std::to_string(domain);
   } else if (*domain_opt) {
     throw std::invalid_argument("--domain: only for a DDS backend (--backend dds)");
   }
+  // Until the robot is active (a DDS robot's first state may take seconds), a signal ends the
+  // tool at once: nothing has been commanded yet.
+  tool::exitOnSignal();
+  o.interruptible = true;
   std::FILE* progress = isatty(fileno(stderr)) ? stderr : nullptr;
   const EnonGraspResult r = runEnonGraspSession(o, progress);
   std::printf("%s\n", r.summary.c_str());

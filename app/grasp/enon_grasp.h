@@ -39,6 +39,9 @@ struct EnonGraspOptions {
   std::string camera;
   std::map<std::string, std::string> camera_settings;  ///< robot::SourceRequest::settings
   servo::GraspOptions grasp;
+  /// SIGINT/SIGTERM end the run: until the robot is active at once (tool::exitOnSignal, set by
+  /// the caller), then by stopping the robot and returning tool::interruptedCode(signal).
+  bool interruptible = false;
 };
 
 struct EnonGraspResult {

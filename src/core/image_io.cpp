@@ -374,4 +374,24 @@ ImageRead readImage(const std::string& path, ImageMode mode, const ImageLimits& 
   }
 }
 
+std::string writeImageFile(const std::string& path, const cv::Mat& image, const std::vector<int>& params) {
+  const size_t dot = path.find_last_of("./");
+  const std::string ext = dot == std::string::npos || path[dot] != '.' ? "" : path.substr(dot);
+  std::vector<uchar> bytes;
+  try {
+    if (ext.empty() || !cv::imencode(ext, image, bytes, params)) return "no encoder for '" + ext + "'";
+  } catch (const cv::Exception& e) {
+    return "cannot encode the image: " + e.err;
+  }
+  std::FILE* f = std::fopen(path.c_str(), "wb");
+  if (!f) return std::strerror(errno);
+  errno = 0;
+  const bool written = std::fwrite(bytes.data(), 1, bytes.size(), f) == bytes.size();
+  int err = errno;
+  const bool closed = std::fclose(f) == 0;
+  if (!err) err = errno;
+  if (written && closed) return "";
+  return err ? std::strerror(err) : "I/O error";
+}
+
 }  // namespace refgrasp

@@ -8,6 +8,7 @@
 // the image unusable rather than silently half-decoded.
 #include <cstdint>
 #include <string>
+#include <vector>
 #include <opencv2/core.hpp>
 
 namespace refgrasp {
@@ -49,6 +50,13 @@ ImageRead readImage(const std::string& path, ImageMode mode,
 /// Decodes bytes already in memory; `name` is the file named in errors.
 ImageRead decodeImage(const std::string& name, const std::string& bytes, ImageMode mode,
                       const ImageLimits& limits = ImageLimits::fromEnvironment());
+
+/// Encodes `image` in memory (the format from the path's extension, OpenCV's imwrite params) and
+/// writes the bytes; returns "" or the problem ("no encoder for '.xyz'", "No space left on
+/// device"). The encoders never write the file themselves, so libpng's and libjpeg's own messages
+/// on a failed write (a full disk) never reach stderr.
+std::string writeImageFile(const std::string& path, const cv::Mat& image,
+                           const std::vector<int>& params = {});
 
 /// The header of an image in memory; returns "" on success, else the problem (no file name).
 std::string probeImageHeader(const std::string& bytes, ImageHeader* header);

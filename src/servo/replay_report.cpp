@@ -10,6 +10,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "core/image_io.h"
 #include "core/error.h"
 #include "core/json.h"
 #include "detector/detection_json.h"
@@ -363,13 +364,9 @@ bool ReplayReport::writeOverlay(const cv::Mat& overlay, int64_t frame, std::stri
     char name[32];
     std::snprintf(name, sizeof(name), "%06lld.png", static_cast<long long>(frame));
     const fs::path p = fs::path(dir_) / "frames" / name;
-    bool written = false;
-    try {
-      written = cv::imwrite(p.string(), overlay);
-    } catch (const cv::Exception&) {
-    }
-    if (!written) *error = p.string() + ": cannot write";
-    return written;
+    const std::string problem = writeImageFile(p.string(), overlay);
+    if (!problem.empty()) *error = p.string() + ": cannot write: " + problem;
+    return problem.empty();
   }
   if (!video_.isOpened()) {
     if (pending_overlay_.empty()) {  // wait for the second frame: it gives the frame rate
@@ -553,14 +550,11 @@ bool ReplayReport::finish(std::string* error) {
   }
   cv::Mat plot;
   if (!blocks.empty()) cv::vconcat(blocks, plot);
-  bool written = false;
-  try {
-    written = !plot.empty() && cv::imwrite((fs::path(dir_) / "plot.png").string(), plot);
-  } catch (const cv::Exception&) {
-  }
-  if (!written && !plot.empty()) {
-    *error = dir_ + "/plot.png: cannot write";
-    return false;
+  if (!plot.empty()) {
+    if (const std::string p = writeImageFile((fs::path(dir_) / "plot.png").string(), plot); !p.empty()) {
+      *error = dir_ + "/plot.png: cannot write: " + p;
+      return false;
+    }
   }
   jsonl_.close();
   csv_.close();

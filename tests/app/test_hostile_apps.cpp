@@ -4,11 +4,14 @@
 #include <gtest/gtest.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
 #include <random>
+#include <tuple>
 #include <vector>
 
 #include "common/app_run.h"
@@ -39,13 +42,19 @@ std::string write(const std::string& name, const std::string& bytes) {
 
 std::string q(const std::string& s) { return "'" + s + "'"; }
 
-// Runs `app args` with stdout to `out` (a file, or /dev/full) and stderr captured.
-AppRun run(const std::string& app, const std::string& args, const std::string& out = "") {
+// Runs `prefix app args` (prefix: "env VAR=value ...", "timeout ...") with stdout to `out` (a
+// file, or /dev/full) and stderr captured; a tool still running after 120 s is stopped (124).
+AppRun runWith(const std::string& prefix, const std::string& app, const std::string& args,
+               const std::string& out = "") {
   const fs::path o = dir() / (app + "_stdout.txt"), e = dir() / (app + "_stderr.txt");
-  const std::string cmd = "timeout 120 " + std::string(REFGRASP_APP_DIR) + "/" + app + " " + args +
+  const std::string cmd = prefix + " timeout -k 5 120 " + std::string(REFGRASP_APP_DIR) + "/" + app + " " + args +
                           " > " + (out.empty() ? o.string() : out) + " 2> " + e.string() + " < /dev/null";
   const int st = std::system(cmd.c_str());
   return {WIFEXITED(st) ? WEXITSTATUS(st) : -1, out.empty() ? readFile(o) : "", readFile(e)};
+}
+
+AppRun run(const std::string& app, const std::string& args, const std::string& out = "") {
+  return runWith("", app, args, out);
 }
 
 size_t lines(const std::string& s) { return static_cast<size_t>(std::count(s.begin(), s.end(), '\n')); }
@@ -285,4 +294,230 @@ TEST(HostileOtherTools, ParseErrorsExit2AndBadFilesAreOneLine) {
   expectOptionErrors("vision_component", "--object " + obj, {"--domain nan"}, 2);
   expectOneLine(run("sim_robot_node", "--enon " + kEnon + " --scenario " + fifoPath()), 2, "is a FIFO",
                 "sim_robot_node fifo");
+}
+
+// ---- The shared policy of app/tool/tool.h, class by class, on every tool it concerns. ----
+
+namespace {
+
+const std::string kCameraArgs = " --camera " + kObjectCamera + " --corners 0,0,399,0,399,399,0,399 --size 0.2,0.2";
+const std::string kGraspBase = "--backend sim --enon " + kEnon + " --oracle --scenario ";
+
+std::string copyOf(const std::string& from, const fs::path& to) {
+  fs::create_directories(to.parent_path());
+  fs::copy_file(from, to, fs::copy_options::overwrite_existing);
+  return to.string();
+}
+
+// The loopback configuration, a private domain and namespace: DDS tests run in parallel.
+std::string loopbackUri() { return "file://" + kSource + "/config/dds/cyclonedds_loopback.xml"; }
+std::string privateDomainArg() { return " --domain " + std::to_string(1 + ::getpid() % 200); }
+std::string privateNs() { return "/hostile_" + std::to_string(::getpid()); }
+
+// The DDS tools with the arguments that start them (enon_grasp on the dds backend).
+struct DdsTool {
+  std::string app, args;
+};
+std::vector<DdsTool> ddsTools() {
+  return {{"vision_component", "--object " + kSource + "/config/objects/cereal_box.yaml --ns " + privateNs()},
+          {"sim_robot_node", "--enon " + kEnon + " --scenario " + kScenario + " --ns " + privateNs()},
+          {"enon_grasp", "--backend dds --enon " + kEnon + " --scenario " + kScenario + " --ns " + privateNs()}};
+}
+
+}  // namespace
+
+TEST(HostileDataLoss, NoToolWritesOverOneOfItsInputsWhateverTheName) {
+  const fs::path ph = dir() / "loss";
+  fs::remove_all(ph);
+  const std::string photo = copyOf(kTexture, ph / "box.png"), original = readFile(photo);
+  // The default check picture (OUTPUT with .png) would be the photo.
+  expectOneLine(run("make_reference", "--image " + photo + kCameraArgs + " --output " + (ph / "box.yaml").string()), 2,
+                "--check " + photo + ": is the input --image " + photo, "default --check");
+  EXPECT_FALSE(fs::exists(ph / "box.yaml"));
+  // The same file by a symlink, a hard link, a path with "." and "..", or as the camera file.
+  fs::create_symlink("box.png", ph / "link.png");
+  fs::create_hard_link(photo, ph / "hard.png");
+  const std::string camera = copyOf(kObjectCamera, ph / "cam.yaml");
+  for (const auto& [args, needle] : std::vector<std::pair<std::string, std::string>>{
+           {"--image " + (ph / "link.png").string() + kCameraArgs + " --output " + (ph / "o.yaml").string() +
+                " --check " + photo, "--check " + photo + ": is the input --image"},
+           {"--image " + (ph / "hard.png").string() + kCameraArgs + " --output " + (ph / "o.yaml").string() +
+                " --check " + (ph / "." / "box.png").string(), ": is the input --image " + (ph / "hard.png").string()},
+           {"--image " + photo + " --camera " + camera + " --corners 0,0,399,0,399,399,0,399 --size 0.2,0.2 --output " +
+                (ph / "sub" / ".." / "cam.yaml").string(), ": is the input --camera " + camera},
+           {"--image " + photo + kCameraArgs + " --output " + (ph / "o.yaml").string() + " --check " +
+                (ph / "o.yaml").string(), "--check " + (ph / "o.yaml").string() + ": is also --output"}})
+    expectOneLine(run("make_reference", args), 2, needle, args);
+  EXPECT_EQ(readFile(photo), original);
+  EXPECT_FALSE(fs::exists(ph / "o.yaml"));
+
+  // Output folders that are or hold an input: pose_replay, record, sim_enon_demo, enon_grasp --log.
+  const fs::path frames = ph / "frames";
+  fs::create_directories(frames);
+  cv::imwrite((frames / "a0.png").string(), cv::imread(kTexture, cv::IMREAD_GRAYSCALE));
+  cv::imwrite((frames / "a1.png").string(), cv::imread(kTexture, cv::IMREAD_GRAYSCALE));
+  expectOneLine(run("pose_replay", "--object " + kSource + "/config/objects/cereal_box.yaml --camera " + kObjectCamera +
+                                       " --input " + frames.string() + " --output " + frames.string()),
+                2, "--output " + frames.string() + ": is the input --input", "pose_replay into its input");
+  EXPECT_FALSE(fs::exists(frames / "poses.jsonl"));
+  expectOneLine(run("record", "--source folder:" + frames.string() + " --camera " + kObjectCamera + " --output " +
+                                  frames.string()),
+                2, "--output " + frames.string() + ": is the input --source", "record into its source");
+  const std::string scenario = copyOf(kScenario, ph / "demo" / "state.csv");
+  const std::string scenario_text = readFile(scenario);
+  expectOneLine(run("sim_enon_demo", "--enon " + kEnon + " --scenario " + scenario + " --out " + (ph / "demo").string() +
+                                         " --duration 0.1"),
+                2, "--out " + (ph / "demo").string() + ": holds the input --scenario " + scenario, "sim_enon_demo");
+  expectOneLine(run("enon_grasp", kGraspBase + scenario + " --log " + (ph / "demo").string()), 2,
+                "--log " + (ph / "demo").string() + ": holds the input --scenario", "enon_grasp --log");
+  expectOneLine(run("enon_grasp", kGraspBase + scenario + " --video " + scenario), 2,
+                "--video " + scenario + ": is the input --scenario", "enon_grasp --video");
+  expectOneLine(run("sim_robot_node", "--enon " + kEnon + " --scenario " + scenario + " --result " + scenario), 2,
+                "--result " + scenario + ": is the input --scenario", "sim_robot_node --result");
+  EXPECT_EQ(readFile(scenario), scenario_text);
+  // enon_grasp: an object definition that the scenario names.
+  const std::string target = objectFile("loss/target.yaml", kPose), target_text = readFile(target);
+  const std::string named = scenarioWith("loss_named", "definition: " + kSource + "/config/objects/cereal_box.yaml",
+                                         "definition: " + target);
+  expectOneLine(run("enon_grasp", kGraspBase + named + " --video " + (ph / "." / "target.yaml").string()), 2,
+                ": is the input the scenario's object " + target, "enon_grasp --video over the target's definition");
+  EXPECT_EQ(readFile(target), target_text);
+}
+
+TEST(HostileNumbers, IntegerOptionsAreRangeCheckedNeverWrapped) {
+  const std::string huge = "99999999999999999999999";  // > 2^64
+  expectOneLine(run("enon_grasp", kGraspBase + kScenario + " --seed " + huge), 2,
+                "--seed: " + huge + " is outside [0, 18446744073709551615]", "--seed");
+  expectOneLine(run("enon_grasp", kGraspBase + kScenario + " --seed 18446744073709551616"), 2, "--seed", "--seed 2^64");
+  expectOneLine(run("enon_grasp", kGraspBase + kScenario + " --seed 0x10"), 2, "--seed: '0x10' is not a whole number",
+                "--seed hex");
+  expectOneLine(run("enon_grasp", "--backend dds --enon " + kEnon + " --scenario " + kScenario + " --domain 233"), 2,
+                "--domain: 233 is outside [0, 232]", "enon_grasp --domain");
+  const std::string obj = "--object " + kSource + "/config/objects/cereal_box.yaml ";
+  for (const std::string& o : std::vector<std::string>{"--max-features " + huge, "--max-instances 1.5", "--min-inliers 4294967300"})
+    expectOneLine(run("detect_object", obj + o + " " + kTexture), 2, o.substr(0, o.find(' ')) + ": ", o);
+  expectOneLine(run("make_reference", "--image " + kTexture + kCameraArgs + " --output " + (dir() / "num/o.yaml").string() +
+                                          " --tag-id " + huge),
+                2, "--tag-id: " + huge + " is outside", "--tag-id");
+  // int64 --frames: CLI11 saturates it to 2^63-1 without an error.
+  expectOneLine(run("record", "--source folder:" + kSource + "/media/targets --camera " + kObjectCamera + " --output " +
+                                  (dir() / "num_rec").string() + " --frames " + huge),
+                2, "--frames: " + huge + " is outside", "--frames");
+  expectOneLine(run("sim_enon_demo", "--enon " + kEnon + " --scenario " + kScenario + " --out " +
+                                         (dir() / "num_demo").string() + " --png-every " + huge),
+                2, "--png-every: " + huge + " is outside", "--png-every");
+  // An int option: CLI11 refuses what does not fit, dds::domainOrNamespaceProblem the range.
+  for (const DdsTool& t : ddsTools())
+    if (t.app != "enon_grasp")
+      for (const char* d : {"4294967296", "233", "1.5"})
+        expectOneLine(run(t.app, t.args + " --domain " + d), 2, "--domain", t.app + " --domain " + d);
+}
+
+TEST(HostileEnvironment, DomainIdAndCycloneUriAreCheckedByEveryDdsToolBeforeCyclone) {
+  const fs::path d = dir() / "env";
+  fs::create_directories(d / "folder.xml");
+  const std::string fifo = (d / "config.fifo").string();
+  if (!fs::exists(fifo)) ::mkfifo(fifo.c_str(), 0600);
+  const std::string big = write("env/big.xml", std::string((5u << 20), ' '));
+  const std::string missing = (d / "missing.xml").string();
+  const std::vector<std::pair<std::string, std::string>> bad = {
+      {"ROS_DOMAIN_ID=abc", "ROS_DOMAIN_ID: 'abc' is not a domain id (an integer in [0, 232])"},
+      {"ROS_DOMAIN_ID=233", "ROS_DOMAIN_ID: '233' is not a domain id"},
+      {"ROS_DOMAIN_ID=-1", "ROS_DOMAIN_ID: '-1' is not a domain id"},
+      {"CYCLONEDDS_URI=" + fifo, "CYCLONEDDS_URI: " + fifo + ": is a FIFO, not a regular file"},
+      {"CYCLONEDDS_URI=file://" + fifo, "CYCLONEDDS_URI: " + fifo + ": is a FIFO"},
+      {"CYCLONEDDS_URI=" + (d / "folder.xml").string(), "CYCLONEDDS_URI: " + (d / "folder.xml").string() + ": is a directory"},
+      {"CYCLONEDDS_URI=file://" + missing, "CYCLONEDDS_URI: " + missing + ": file not found"},
+      {"CYCLONEDDS_URI=file://" + big, "CYCLONEDDS_URI: " + big + ": is 5242880 bytes, more than the limit"},
+      // A list: inline XML first (accepted as Cyclone reads it), then a missing file.
+      {"CYCLONEDDS_URI='<CycloneDDS><Domain/></CycloneDDS>,file://" + missing + "'", "CYCLONEDDS_URI: " + missing},
+  };
+  for (const DdsTool& t : ddsTools())
+    for (const auto& [env, needle] : bad)
+      expectOneLine(runWith("env ROS_DOMAIN_ID=7 CYCLONEDDS_URI=" + loopbackUri() + " " + env, t.app, t.args), 2,
+                    t.app + ": " + needle, t.app + " " + env);
+  // enon_grasp checks the DDS environment only for a DDS backend.
+  EXPECT_NE(runWith("env ROS_DOMAIN_ID=abc", "enon_grasp", kGraspBase + kScenario + " --max-time 0.1").status, 2);
+}
+
+TEST(HostileEnvironment, MaxImagePixelsIsCheckedByEveryToolThatReadsImages) {
+  const std::string obj = kSource + "/config/objects/cereal_box.yaml";
+  const std::vector<DdsTool> tools = {
+      {"detect_object", "--object " + obj + " " + kTexture},
+      {"make_reference", "--image " + kTexture + kCameraArgs + " --output " + (dir() / "px/o.yaml").string()},
+      {"pose_replay", "--object " + obj + " --camera " + kObjectCamera + " --input " + kSource + "/media/targets --output " +
+                          (dir() / "px_replay").string()},
+      {"record", "--source folder:" + kSource + "/media/targets --camera " + kObjectCamera + " --output " +
+                     (dir() / "px_rec").string()},
+      {"sim_enon_demo", "--enon " + kEnon + " --scenario " + kScenario + " --out " + (dir() / "px_demo").string() +
+                            " --duration 0.1"},
+      {"enon_grasp", kGraspBase + kScenario + " --max-time 0.1"},
+      {"sim_robot_node", "--enon " + kEnon + " --scenario " + kScenario + " --duration 0.1" + privateDomainArg()},
+      {"vision_component", "--object " + obj + privateDomainArg()},
+  };
+  // Every malformed form on one tool, two on each of the others.
+  for (const DdsTool& t : tools)
+    for (const char* v : {"abc", "0", "-5", "12x", "99999999999999999999999"})
+      if (t.app == "detect_object" || v[0] == 'a' || v[0] == '9')
+        expectOneLine(runWith("env CYCLONEDDS_URI=" + loopbackUri() + " REFGRASP_MAX_IMAGE_PIXELS=" + std::string(v), t.app, t.args), 2,
+                      t.app + ": REFGRASP_MAX_IMAGE_PIXELS: '" + std::string(v) + "' is not a pixel count", t.app + " " + v);
+}
+
+TEST(HostileStartup, ADdsRobotThatNeverAnswersIsOneLineAndASignalEndsTheWaitAtOnce) {
+  const std::string env = "env CYCLONEDDS_URI=" + loopbackUri();
+  const std::string args = "--backend dds --enon " + kEnon + " --scenario " + kScenario + " --ns " + privateNs() +
+                           privateDomainArg();
+  // No robot driver: the backend's own line, alone (not followed by "could not start the robot").
+  const AppRun r = runWith(env, "enon_grasp", args);
+  expectOneLine(r, 3, "enon_grasp: dds robot: no " + privateNs() + "/joint_states on domain", "no robot");
+  // SIGTERM and SIGINT during the wait for the robot's first state (5 s; the signal comes after
+  // 2.5 s, when a loaded machine has surely loaded the tool): one line, 128 + signal, at once.
+  for (const auto& [sig, code, name] : {std::tuple<const char*, int, const char*>{"TERM", 143, "SIGTERM"},
+                                        {"INT", 130, "SIGINT"}}) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const AppRun s = runWith(env + " timeout --preserve-status -k 10 -s " + std::string(sig) + " 2.5", "enon_grasp", args);
+    const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    expectOneLine(s, code, std::string("enon_grasp: interrupted by ") + name + " during start-up", name);
+    EXPECT_LT(took, 4.5) << name;
+  }
+}
+
+TEST(HostileStartup, ASignalMidRunStopsTheRobotAndIsOneLine) {
+  // A vision run on the simulator takes seconds of CPU: SIGINT after 2.5 s finds it running (or,
+  // on a loaded machine, still starting): one line, 130, the robot stopped by the controller.
+  const auto t0 = std::chrono::steady_clock::now();
+  const AppRun r = runWith("timeout --preserve-status -k 10 -s INT 2.5", "enon_grasp",
+                           "--backend sim --enon " + kEnon + " --scenario " + kScenario);
+  const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  expectOneLine(r, 130, "enon_grasp: interrupted by SIGINT", "SIGINT mid-run");
+  EXPECT_LT(took, 4.5);
+}
+
+TEST(HostileLibraryMessages, CycloneLibpngAndFfmpegNeverPrintTheirOwnLines) {
+  // Cyclone DDS: an unknown element in the configuration; our line names it, alone.
+  const std::string xml = "'<CycloneDDS><Domain><General><NoSuchSetting/></General></Domain></CycloneDDS>'";
+  for (const DdsTool& t : ddsTools())
+    expectOneLine(runWith("env CYCLONEDDS_URI=" + xml, t.app, t.args + privateDomainArg()), 3,
+                  "(Cyclone DDS: config: //CycloneDDS/Domain/General: NoSuchSetting: unknown element", t.app);
+  // libpng on a full disk: a PNG output that is /dev/full.
+  const fs::path d = dir() / "full";
+  fs::remove_all(d);
+  fs::create_directories(d / "media" / "targets");
+  fs::create_directories(d / "demo");
+  fs::create_symlink("/dev/full", d / "full.png");
+  fs::create_symlink("/dev/full", d / "media" / "targets" / "poster_concert.png");
+  fs::create_symlink("/dev/full", d / "demo" / "frame_00000_left.png");
+  const std::string nospace = "cannot write the image: No space left on device";
+  expectOneLine(run("make_reference", "--image " + kTexture + kCameraArgs + " --output " + (d / "o.yaml").string() +
+                                          " --check " + (d / "full.png").string()),
+                3, (d / "full.png").string() + ": " + nospace, "make_reference");
+  expectOneLine(run("make_media", "--out " + (d / "media").string()), 3, "poster_concert.png: " + nospace, "make_media");
+  expectOneLine(run("sim_enon_demo", "--enon " + kEnon + " --scenario " + kScenario + " --out " + (d / "demo").string() +
+                                         " --duration 0.1"),
+                3, "frame_00000_left.png: " + nospace, "sim_enon_demo");
+  // FFmpeg: a video in a folder that does not exist is that, not a missing encoder.
+  expectOneLine(run("enon_grasp", kGraspBase + kScenario + " --video " + (d / "nowhere" / "v.mp4").string()), 2,
+                "--video " + (d / "nowhere" / "v.mp4").string() + ": folder " + (d / "nowhere").string() +
+                    " does not exist",
+                "enon_grasp --video");
 }

@@ -158,6 +158,7 @@ class DdsHardware : public robot::RobotHardware {
   explicit DdsHardware(std::shared_ptr<Link> link) : l_(std::move(link)) {}
 
   ReturnType configure() override { return l_->open() ? ReturnType::kOk : ReturnType::kError; }
+  std::string lastError() const override { return l_->last_error; }
 
   ReturnType activate() override {
     if (!l_->pp) return ReturnType::kError;
@@ -231,8 +232,6 @@ class DdsHardware : public robot::RobotHardware {
     l_->clearError();
     return ReturnType::kOk;
   }
-
-  std::string lastError() const override { return l_->last_error; }
 
   ReturnType write(Seconds time, Seconds /*period*/, const robot::RobotCommand& cmd,
                    Seconds valid_for_s) override {
