@@ -39,8 +39,9 @@ folder with left/ and right/ image folders (with --stereo), or any source spec:
 
 const char* kExit = R"(
 Exit status: 0 every frame processed; 1 some frames could not be processed (a one-line error each
-on stderr; the outputs hold every other frame); 2 bad options, object, camera or input; 3 the
-outputs could not be written (disk full?).)";
+on stderr; the outputs hold every other frame); 2 bad options, object, camera or input, or an
+input without a frame ("nothing to do": an empty recording, folder or video); 3 the outputs could
+not be written (disk full?).)";
 
 std::string clock(double s) {
   if (!std::isfinite(s) || s < 0) return "--:--";
@@ -170,6 +171,10 @@ int poseReplay(int argc, char** argv) {
     return 3;
   }
   bar.update(run.frames, true);
+  if (run.frames == 0) {  // a source that ended before its first frame: no output is a result
+    std::cerr << "pose_replay: " << src.description << ": no frames: nothing to do\n";
+    return tool::kBadInput;
+  }
   if (!report->finish(&error)) {
     std::cerr << "pose_replay: " << error << "\n";
     return 3;

@@ -22,8 +22,8 @@ calib/ (the calibration used), frames/ (lossless PNG) and index.jsonl (one JSON 
 appended only once the frame's images are on disk). A recorder killed at any instant or a disk
 that fills leaves a recording that reads up to its last complete frame.
 Exit status: 0 done; 1 some frames could not be read and were skipped, or a live camera failed
-(one-line error each; the recording holds the rest); 2 bad options, source or output folder;
-3 a write failed (disk full, I/O error): the recording is valid up to the frame before.)";
+(one-line error each; the recording holds the rest); 2 bad options, source or output folder, or
+a source without a frame ("nothing to do"); 3 a write failed (disk full, I/O error): the recording is valid up to the frame before.)";
 
 std::atomic<bool> g_stop{false};
 

@@ -1,8 +1,10 @@
 #pragma once
-// The fuzz targets (issue 11): one per configuration parser and one for image decoding. Each takes
-// the bytes of one input file; a parser may refuse it with ConfigError or std::invalid_argument
-// (the one-line errors the tools print), anything else escaping is a finding: another exception,
-// a crash, a hang or a memory bomb (libFuzzer's -timeout and -rss_limit_mb).
+// The fuzz targets: one per configuration parser, one for image decoding and one per
+// line-oriented or JSON file a tool reads (a recording's index.jsonl and recording.json, an image
+// folder's stamps file). Each takes the bytes of one input file; a parser may refuse it with
+// ConfigError or std::invalid_argument (the one-line errors the tools print), anything else
+// escaping is a finding: another exception, a crash, a hang or a memory bomb (libFuzzer's
+// -timeout and -rss_limit_mb).
 //
 // The same targets run in two builds: fuzz/fuzz_main.cpp makes one libFuzzer binary per target
 // (clang, -fsanitize=fuzzer,address,undefined; scripts/fuzz.sh), and ctest replays every saved

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Fuzzes every configuration parser and the image decoding path (fuzz/targets.h) with libFuzzer,
-# built by clang with AddressSanitizer + UndefinedBehaviorSanitizer in its own folder build-fuzz/:
+# Fuzzes every configuration parser, the image decoding path and the recording and stamps readers
+# (fuzz/targets.h) with libFuzzer, built by clang with AddressSanitizer + UndefinedBehaviorSanitizer
+# in its own folder build-fuzz/:
 #
 #   bash scripts/fuzz.sh [SECONDS_PER_TARGET] [TARGET ...]      (default: 60 s, every target)
 #
@@ -14,7 +15,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 SECONDS_EACH=${1:-60}
 shift || true
-ALL=(object camera_yaml camera_xml rig scenario robot_model detector_options image)
+ALL=(object camera_yaml camera_xml rig scenario robot_model detector_options image recording_index
+     recording_json stamps)
 [ $# -gt 0 ] && TARGETS=("$@") || TARGETS=("${ALL[@]}")
 JOBS=${JOBS:-2}
 BUILD=${FUZZ_BUILD_DIR:-build-fuzz}
@@ -56,6 +58,7 @@ for t in "${TARGETS[@]}"; do
     scenario) seeds=(config/scenarios) ;;
     robot_model|detector_options) seeds=(config) ;;
     image) seeds=(fuzz/seeds/image media/targets) ;;
+    recording_index|recording_json|stamps) seeds=("fuzz/seeds/$t") ;;
   esac
   [ -d "fuzz/regressions/$t" ] && seeds+=("fuzz/regressions/$t")
   log="$BUILD/fuzz_$t.log"

@@ -46,3 +46,25 @@ TEST(FuzzRegressions, SavedFindingsAndSeedsAreRefusedCleanly) {
     for (const fs::path& f : files) EXPECT_EQ(refgrasp::fuzz::runChecked(t, bytes(f)), "") << f;
   }
 }
+
+// The seeds of the readers of recordings and stamps files are valid inputs: each is read without
+// any error (a refused seed would start the fuzzer from nothing).
+TEST(FuzzRegressions, TheRecordingAndStampsSeedsAreReadWithoutError) {
+  const fs::path src = REFGRASP_SOURCE_DIR;
+  for (const char* name : {"recording_index", "recording_json", "stamps"}) {
+    const Target* t = refgrasp::fuzz::findTarget(name);
+    ASSERT_NE(t, nullptr) << name;
+    size_t seeds = 0;
+    for (const auto& e : fs::directory_iterator(src / "fuzz/seeds" / name)) {
+      ++seeds;
+      std::string error;
+      try {
+        t->run(bytes(e.path()));
+      } catch (const std::exception& x) {
+        error = x.what();
+      }
+      EXPECT_EQ(error, "") << e.path();
+    }
+    EXPECT_GE(seeds, 2u) << name;
+  }
+}

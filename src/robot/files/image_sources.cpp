@@ -5,12 +5,12 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
-#include <fstream>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/videoio.hpp>
 #include <sstream>
 
 #include "core/error.h"
+#include "core/file.h"
 #include "core/image_io.h"
 
 namespace refgrasp::files {
@@ -200,6 +200,53 @@ void WebcamOptions::check() const {
   refgrasp::check(std::isfinite(fps_hz) && fps_hz >= 0, "WebcamOptions.fps_hz", "must be >= 0");
 }
 
+namespace {
+
+// The stamps file `stamps` of folder `dir` into list->stamps, and the files its "STAMP FILE"
+// lines name into *listed.
+void readStamps(const std::string& stamps, const std::string& dir, ImageList* list,
+                std::vector<std::string>* listed) {
+  if (regularFileProblem(stamps, kMaxStampsFileBytes) == "file not found")
+    throw ConfigError(stamps, "cannot read the stamps file");
+  list->stamps_file = stamps;
+  int columns = 0;
+  forEachLine(stamps, kMaxStampsFileBytes, kMaxStampsLineBytes, [&](const TextLine& l) {
+    const std::string line = trim(std::string(l.text));
+    if (line.empty() || line[0] == '#') return true;
+    const std::string where = "line " + std::to_string(l.number);
+    if (list->stamps.size() >= kMaxStamps)
+      throw ConfigError(stamps, where, "more than " + std::to_string(kMaxStamps) + " stamps (the reader's limit)");
+    std::istringstream ss(line);
+    std::string a, b;
+    ss >> a >> b;
+    const int cols = b.empty() ? 1 : 2;
+    if (columns != 0 && cols != columns)
+      throw ConfigError(stamps, where, "mixes 'STAMP' and 'STAMP FILE' lines");
+    columns = cols;
+    double t = 0;
+    try {
+      size_t used = 0;
+      t = std::stod(a, &used);
+      if (used != a.size()) throw std::invalid_argument(a);
+    } catch (const std::exception&) {
+      throw ConfigError(stamps, where, "'" + a + "' is not a time stamp (seconds)");
+    }
+    if (!std::isfinite(t)) throw ConfigError(stamps, where, "stamp is not finite");
+    if (!list->stamps.empty() && t <= list->stamps.back())
+      throw ConfigError(stamps, where, "stamps must increase");
+    list->stamps.push_back(t);
+    if (cols == 2) {
+      std::error_code ec;
+      const fs::path f = fs::path(b).is_absolute() ? fs::path(b) : fs::path(dir) / b;
+      if (!fs::is_regular_file(f, ec)) throw ConfigError(stamps, where, f.string() + ": no such file");
+      listed->push_back(f.string());
+    }
+    return true;
+  });
+}
+
+}  // namespace
+
 ImageList listImages(const std::string& dir, const FolderOptions& opt) {
   opt.check();
   std::error_code ec;
@@ -210,43 +257,7 @@ ImageList listImages(const std::string& dir, const FolderOptions& opt) {
   if (stamps.empty() && fs::is_regular_file(fs::path(dir) / "stamps.txt", ec))
     stamps = (fs::path(dir) / "stamps.txt").string();
   std::vector<std::string> listed;  // files named by a "STAMP FILE" stamps file
-  if (!stamps.empty()) {
-    std::ifstream in(stamps);
-    if (!in) throw ConfigError(stamps, "cannot read the stamps file");
-    list.stamps_file = stamps;
-    std::string line;
-    int n = 0, columns = 0;
-    while (std::getline(in, line)) {
-      ++n;
-      line = trim(line);
-      if (line.empty() || line[0] == '#') continue;
-      std::istringstream ss(line);
-      std::string a, b;
-      ss >> a >> b;
-      const int cols = b.empty() ? 1 : 2;
-      const std::string where = "line " + std::to_string(n);
-      if (columns != 0 && cols != columns)
-        throw ConfigError(stamps, where, "mixes 'STAMP' and 'STAMP FILE' lines");
-      columns = cols;
-      double t = 0;
-      try {
-        size_t used = 0;
-        t = std::stod(a, &used);
-        if (used != a.size()) throw std::invalid_argument(a);
-      } catch (const std::exception&) {
-        throw ConfigError(stamps, where, "'" + a + "' is not a time stamp (seconds)");
-      }
-      if (!std::isfinite(t)) throw ConfigError(stamps, where, "stamp is not finite");
-      if (!list.stamps.empty() && t <= list.stamps.back())
-        throw ConfigError(stamps, where, "stamps must increase");
-      list.stamps.push_back(t);
-      if (cols == 2) {
-        const fs::path f = fs::path(b).is_absolute() ? fs::path(b) : fs::path(dir) / b;
-        if (!fs::is_regular_file(f, ec)) throw ConfigError(stamps, where, f.string() + ": no such file");
-        listed.push_back(f.string());
-      }
-    }
-  }
+  if (!stamps.empty()) readStamps(stamps, dir, &list, &listed);
   if (!listed.empty()) {
     list.files = listed;
   } else {
@@ -255,7 +266,7 @@ ImageList listImages(const std::string& dir, const FolderOptions& opt) {
         list.files.push_back(e.path().string());
     std::sort(list.files.begin(), list.files.end());
   }
-  if (list.files.empty()) throw ConfigError(dir, "no image files in the folder");
+  if (list.files.empty()) throw ConfigError(dir, "no image files in the folder: nothing to do");
   if (list.stamps_file.empty()) {
     for (size_t i = 0; i < list.files.size(); ++i)
       list.stamps.push_back(static_cast<double>(i) / opt.fps_hz);
@@ -299,8 +310,12 @@ std::unique_ptr<robot::FrameSource> makeVideoSource(const std::string& path,
   } catch (const cv::Exception&) {
   }
   if (!cap->isOpened()) throw ConfigError(path, "cannot decode as a video (FFmpeg)");
+  // A container that declares no frame (e.g. an AVI written without any) is said to be empty.
+  const bool declared_empty = cap->get(cv::CAP_PROP_FRAME_COUNT) == 0;
   auto src = std::make_unique<CaptureSource>(path, std::move(cap), camera, options.fps_hz);
-  if (!src->firstFrameOk()) throw ConfigError(path, "cannot decode as a video (no frame decoded)");
+  if (!src->firstFrameOk())
+    throw ConfigError(path, declared_empty ? "has no frames (an empty video): nothing to do"
+                                           : "cannot decode as a video (no frame decoded)");
   return src;
 }
 

@@ -8,6 +8,15 @@
 // given): '#' comments and blank lines ignored; either one stamp (seconds) per line for the sorted
 // images, or "STAMP FILE" per line (the TUM RGB-D rgb.txt layout; FILE relative to the folder),
 // which then lists the images. Without a stamps file frame i is at i / fps_hz.
+//
+// Stamps file limits, far above any real one (refused with one line before it is read, or at the
+// line): a line is ~20-60 bytes ("1305031102.175304 rgb/1305031102.175304.png"), a day at 48 fps
+// 4.1M lines (~250 MB); the file is at most 1 GiB, a line 64 KiB (a path is at most 4 KiB),
+// 8388608 stamps (48 h at 48 fps).
+//
+// An input with nothing in it (a folder without images, a video without a frame) is a
+// ConfigError ("... nothing to do"): a tool says so and exits 2 instead of succeeding.
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -16,6 +25,10 @@
 #include "robot/camera.h"
 
 namespace refgrasp::files {
+
+inline constexpr uint64_t kMaxStampsFileBytes = uint64_t{1} << 30;
+inline constexpr uint64_t kMaxStampsLineBytes = uint64_t{64} << 10;
+inline constexpr size_t kMaxStamps = size_t{8} << 20;
 
 struct FolderOptions {
   std::string stamps_file;  ///< "" -> DIR/stamps.txt when it exists
@@ -34,7 +47,8 @@ struct ImageList {
 };
 
 /// Throws ConfigError "<path>: <problem>" (no such folder, no images, a bad stamps line, a listed
-/// file that does not exist, stamps not increasing, as many stamps as images needed).
+/// file that does not exist, stamps not increasing, as many stamps as images needed, a stamps file
+/// over the limits above).
 ImageList listImages(const std::string& dir, const FolderOptions& options);
 
 /// Mono images of one folder.

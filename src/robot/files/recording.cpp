@@ -9,11 +9,10 @@
 #include <cstring>
 #include <ctime>
 #include <filesystem>
-#include <fstream>
 #include <opencv2/imgcodecs.hpp>
-#include <sstream>
 
 #include "core/error.h"
+#include "core/file.h"
 #include "core/image_io.h"
 #include "robot/files/frame_json.h"
 
@@ -87,18 +86,19 @@ std::string isoNow() {
 
 std::string sizeText(int w, int h) { return std::to_string(w) + "x" + std::to_string(h); }
 
-// True when the file exists and ends with the PNG IEND chunk (a write that stopped half-way
-// leaves no end chunk). Cheap: reads 12 bytes.
+// True when the file is a regular file that ends with the PNG IEND chunk (a write that stopped
+// half-way leaves no end chunk). Cheap: reads 12 bytes; opened without blocking (a FIFO named by a
+// hostile index is refused, not waited on).
 bool pngComplete(const fs::path& p) {
   static const unsigned char kIend[12] = {0, 0, 0, 0, 'I', 'E', 'N', 'D', 0xAE, 0x42, 0x60, 0x82};
-  std::ifstream in(p, std::ios::binary | std::ios::ate);
-  if (!in) return false;
-  const std::streamoff n = in.tellg();
-  if (n < 12 + 8) return false;
-  in.seekg(n - 12);
+  const int fd = ::open(p.c_str(), O_RDONLY | O_NONBLOCK | O_NOCTTY | O_CLOEXEC);
+  if (fd < 0) return false;
+  struct stat st {};
   unsigned char tail[12];
-  if (!in.read(reinterpret_cast<char*>(tail), 12)) return false;
-  return std::memcmp(tail, kIend, 12) == 0;
+  const bool ok = ::fstat(fd, &st) == 0 && S_ISREG(st.st_mode) && st.st_size >= 12 + 8 &&
+                  ::pread(fd, tail, 12, st.st_size - 12) == 12 && std::memcmp(tail, kIend, 12) == 0;
+  ::close(fd);
+  return ok;
 }
 
 }  // namespace
@@ -250,21 +250,68 @@ bool isRecording(const std::string& dir) {
   return fs::is_regular_file(fs::path(dir) / "recording.json", ec);
 }
 
-Recording Recording::open(const std::string& dir) {
-  Recording r;
-  r.dir_ = dir;
-  const fs::path d(dir);
-  const std::string meta_path = (d / "recording.json").string();
-  std::error_code ec;
-  if (!fs::is_directory(d, ec)) throw ConfigError(dir, "no such folder");
-  std::ifstream meta_in(meta_path);
-  if (!meta_in) throw ConfigError(meta_path, "missing: not a refgrasp recording");
+namespace {
+
+// The checks of one index line: "" with *e filled, else the problem (the recording ends there).
+std::string parseIndexLine(std::string_view line, const fs::path& d, bool stereo,
+                           size_t expected_frame, IndexEntry* e) {
+  Json j;
+  try {
+    j = Json::parse(line);
+  } catch (const std::exception&) {
+    return "not valid JSON";
+  }
+  std::string problem;
+  const auto integer = [&](const char* key, int64_t* out) {
+    if (!j.contains(key) || !j[key].is_number_integer()) {
+      problem = std::string(key) + ": missing or not an integer";
+      return false;
+    }
+    *out = j[key].get<int64_t>();
+    return true;
+  };
+  if (!j.is_object() || !integer("frame", &e->frame) || !integer("index", &e->index))
+    return problem.empty() ? "not an object" : problem;
+  if (e->frame != static_cast<int64_t>(expected_frame))
+    return "frame " + std::to_string(e->frame) + " out of order (expected " +
+           std::to_string(expected_frame) + ")";
+  if (!j.contains("stamp") || !j["stamp"].is_number() || !std::isfinite(j["stamp"].get<double>()))
+    return "stamp: missing or not a finite number";
+  e->stamp = j["stamp"].get<double>();
+  const bool files_ok = j.contains("files") && j["files"].is_object();
+  for (const char* k : stereo ? std::vector<const char*>{"left", "right"} : std::vector<const char*>{"image"}) {
+    if (!files_ok || !j["files"].contains(k) || !j["files"][k].is_string())
+      return std::string("files: needs ") + (stereo ? "left and right" : "image");
+    e->files.push_back(j["files"][k].get<std::string>());
+  }
+  for (const std::string& f : e->files)
+    if (!pngComplete(d / f)) return (d / f).string() + " is missing or truncated";
+  if (j.contains("capture") && !captureFromJson(j["capture"], &e->capture, &problem))
+    return "capture." + problem;
+  if (j.contains("truth") && !truthFromJson(j["truth"], &e->truth, &problem)) return problem;
+  if (j.contains("robot")) {
+    robot::RobotState s;
+    if (!robotStateFromJson(j["robot"], &s, &problem)) return "robot." + problem;
+    e->robot = s;
+  }
+  return "";
+}
+
+}  // namespace
+
+void Recording::readMeta(const std::string& meta_path) {
+  const fs::path d(dir_);
+  if (regularFileProblem(meta_path, kMaxConfigFileBytes) == "file not found")
+    throw ConfigError(meta_path, "missing: not a refgrasp recording");
   Json meta;
   try {
-    meta = Json::parse(meta_in);
+    meta = Json::parse(readRegularFile(meta_path, kMaxConfigFileBytes));
+  } catch (const ConfigError&) {
+    throw;
   } catch (const std::exception&) {
     throw ConfigError(meta_path, "not valid JSON");
   }
+  if (!meta.is_object()) throw ConfigError(meta_path, "not a JSON object");
   const auto str = [&](const char* key) {
     if (!meta.contains(key) || !meta[key].is_string())
       throw ConfigError(meta_path, key, "missing or not a string");
@@ -274,14 +321,15 @@ Recording Recording::open(const std::string& dir) {
     throw ConfigError(meta_path, "format", "is not " + std::string(kRecordingFormat));
   if (!meta.contains("version") || !meta["version"].is_number_integer())
     throw ConfigError(meta_path, "version", "missing or not an integer");
-  if (meta["version"].get<int>() > kRecordingVersion || meta["version"].get<int>() < 1)
+  const int64_t version = meta["version"].get<int64_t>();
+  if (version > kRecordingVersion || version < 1)
     throw ConfigError(meta_path, "version",
-                      std::to_string(meta["version"].get<int>()) + " is not supported (this reader: " +
+                      std::to_string(version) + " is not supported (this reader: " +
                           std::to_string(kRecordingVersion) + ")");
   const std::string kind = str("kind");
   if (kind != "mono" && kind != "stereo") throw ConfigError(meta_path, "kind", "must be mono or stereo");
-  r.stereo_ = kind == "stereo";
-  if (meta.contains("source") && meta["source"].is_string()) r.source_ = meta["source"];
+  stereo_ = kind == "stereo";
+  if (meta.contains("source") && meta["source"].is_string()) source_ = meta["source"];
   if (!meta.contains("calibration") || !meta["calibration"].is_object())
     throw ConfigError(meta_path, "calibration", "missing");
   const auto calib = [&](const char* key) {
@@ -289,111 +337,54 @@ Recording Recording::open(const std::string& dir) {
     if (!c.contains(key) || !c[key].is_string())
       throw ConfigError(meta_path, std::string("calibration.") + key, "missing or not a string");
     const std::string p = (d / c[key].get<std::string>()).string();
-    r.calibration_.emplace_back(key, p);
+    calibration_.emplace_back(key, p);
     return p;
   };
   try {
-    if (r.stereo_) {
-      r.rig_ = loadStereoRig(calib("rig"));
+    if (stereo_) {
+      rig_ = loadStereoRig(calib("rig"));
       calib("left");
       calib("right");
     } else {
-      r.camera_ = loadCameraFile(calib("camera"));
+      camera_ = loadCameraFile(calib("camera"));
     }
   } catch (const ConfigError& e) {
     throw ConfigError(meta_path, "calibration", e.what());
   }
+}
+
+Recording Recording::open(const std::string& dir) {
+  Recording r;
+  r.dir_ = dir;
+  const fs::path d(dir);
+  std::error_code ec;
+  if (!fs::is_directory(d, ec)) throw ConfigError(dir, "no such folder");
+  r.readMeta((d / "recording.json").string());
 
   const std::string index_path = (d / "index.jsonl").string();
-  std::ifstream in(index_path, std::ios::binary);
-  if (!in) throw ConfigError(index_path, "missing");
-  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  size_t pos = 0;
-  int line_no = 0;
-  const std::vector<const char*> keys =
-      r.stereo_ ? std::vector<const char*>{"left", "right"} : std::vector<const char*>{"image"};
-  while (pos < text.size()) {
-    ++line_no;
-    const size_t nl = text.find('\n', pos);
-    const std::string where = index_path + ": line " + std::to_string(line_no);
-    const auto stop = [&](const std::string& why) {
-      r.warning_ = where + ": " + why + "; read the " + std::to_string(r.entries_.size()) +
-                   " frames before it";
-    };
-    if (nl == std::string::npos) {
-      stop("truncated (no end of line)");
-      break;
-    }
+  if (regularFileProblem(index_path, kMaxIndexBytes) == "file not found")
+    throw ConfigError(index_path, "missing");
+  std::string why;
+  uint64_t bad_line = 0;
+  forEachLine(index_path, kMaxIndexBytes, kMaxIndexLineBytes, [&](const TextLine& l) {
+    if (r.entries_.size() >= kMaxIndexFrames)
+      throw ConfigError(index_path, "line " + std::to_string(l.number),
+                        "more than " + std::to_string(kMaxIndexFrames) + " frames (the reader's limit)");
     IndexEntry e;
-    e.line = text.substr(pos, nl - pos);
-    pos = nl + 1;
-    Json j;
-    try {
-      j = Json::parse(e.line);
-    } catch (const std::exception&) {
-      stop("not valid JSON");
-      break;
-    }
-    std::string problem;
-    const auto integer = [&](const char* key, int64_t* out) {
-      if (!j.contains(key) || !j[key].is_number_integer()) {
-        problem = std::string(key) + ": missing or not an integer";
-        return false;
-      }
-      *out = j[key].get<int64_t>();
-      return true;
-    };
-    if (!j.is_object() || !integer("frame", &e.frame) || !integer("index", &e.index)) {
-      stop(problem.empty() ? "not an object" : problem);
-      break;
-    }
-    if (e.frame != static_cast<int64_t>(r.entries_.size())) {
-      stop("frame " + std::to_string(e.frame) + " out of order (expected " +
-           std::to_string(r.entries_.size()) + ")");
-      break;
-    }
-    if (!j.contains("stamp") || !j["stamp"].is_number() || !std::isfinite(j["stamp"].get<double>())) {
-      stop("stamp: missing or not a finite number");
-      break;
-    }
-    e.stamp = j["stamp"].get<double>();
-    bool files_ok = j.contains("files") && j["files"].is_object();
-    std::string missing;
-    for (const char* k : keys) {
-      if (!files_ok || !j["files"].contains(k) || !j["files"][k].is_string()) {
-        files_ok = false;
-        break;
-      }
-      e.files.push_back(j["files"][k].get<std::string>());
-      if (missing.empty() && !pngComplete(d / e.files.back()))
-        missing = (d / e.files.back()).string();
-    }
-    if (!files_ok) {
-      stop(std::string("files: needs ") + (r.stereo_ ? "left and right" : "image"));
-      break;
-    }
-    if (!missing.empty()) {
-      stop(missing + " is missing or truncated");
-      break;
-    }
-    if (j.contains("capture") && !captureFromJson(j["capture"], &e.capture, &problem)) {
-      stop("capture." + problem);
-      break;
-    }
-    if (j.contains("truth") && !truthFromJson(j["truth"], &e.truth, &problem)) {
-      stop(problem);
-      break;
-    }
-    if (j.contains("robot")) {
-      robot::RobotState s;
-      if (!robotStateFromJson(j["robot"], &s, &problem)) {
-        stop("robot." + problem);
-        break;
-      }
-      e.robot = s;
-    }
-    r.entries_.push_back(std::move(e));
-  }
+    why = l.complete ? parseIndexLine(l.text, d, r.stereo_, r.entries_.size(), &e)
+                     : "truncated (no end of line)";
+    if (why.empty()) r.entries_.push_back(std::move(e));
+    bad_line = l.number;
+    return why.empty();
+  });
+  const std::string where = "line " + std::to_string(bad_line);
+  // "Nothing to do" is an error: a tool fed an empty recording says so instead of succeeding.
+  if (r.entries_.empty() && why.empty())
+    throw ConfigError(index_path, "no frames (an empty recording): nothing to do");
+  if (r.entries_.empty()) throw ConfigError(index_path, where, why + "; no frame before it: nothing to do");
+  if (!why.empty())
+    r.warning_ = index_path + ": " + where + ": " + why + "; read the " +
+                 std::to_string(r.entries_.size()) + " frames before it";
   return r;
 }
 

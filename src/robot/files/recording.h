@@ -36,6 +36,17 @@ namespace refgrasp::files {
 inline constexpr const char* kRecordingFormat = "refgrasp-recording";
 inline constexpr int kRecordingVersion = 1;
 
+// Reader limits, far above any real recording; beyond them the reader refuses with one line
+// before it allocates (docs/formats.md "Recording"). An index line of a stereo frame with
+// capture state and ground truth is ~1 kB, with robot state ~2 kB (enon_grasp --log); 256
+// objects of ground truth (the scenario limit) ~130 kB. The frame limit bounds the memory of the
+// parsed entries (~1 kB each with their strings: ~1 GB at the limit) and allows 6 h at 48 fps;
+// the size limit allows 2 kB lines at that count. recording.json is read as a configuration file
+// (kMaxConfigFileBytes, 4 MiB; a real one is ~300 B).
+inline constexpr uint64_t kMaxIndexLineBytes = uint64_t{1} << 20;  ///< 1 MiB a line
+inline constexpr uint64_t kMaxIndexBytes = uint64_t{4} << 30;      ///< 4 GiB in all
+inline constexpr size_t kMaxIndexFrames = size_t{1} << 20;         ///< 1048576 frames
+
 struct RecordingOptions {
   std::string source;       ///< what was recorded (a source spec or a description)
   std::string created_by;   ///< tool name
@@ -112,7 +123,6 @@ struct IndexEntry {
   robot::CaptureState capture;
   std::vector<robot::ObjectTruth> truth;
   std::optional<robot::RobotState> robot;
-  std::string line;    ///< the line as written
 };
 
 /// A recording opened for reading.
@@ -121,7 +131,11 @@ class Recording {
   /// Reads recording.json, the calibration and the index up to the last good frame: a line that
   /// does not parse, a frame number out of order, or an image that is missing or truncated (no
   /// PNG end chunk) ends the recording there, with one warning (warning()). Throws ConfigError
-  /// naming the file for a folder that is not a readable recording.
+  /// naming the file for a folder that is not a readable recording, an index over the limits
+  /// above (its size; a line longer than kMaxIndexLineBytes or past kMaxIndexFrames, naming the
+  /// line), and a recording
+  /// without a frame to read ("no frames (an empty recording): nothing to do", or the first
+  /// line's damage "; no frame before it: nothing to do").
   static Recording open(const std::string& dir);
 
   bool stereo() const { return stereo_; }
@@ -144,6 +158,8 @@ class Recording {
   bool read(size_t i, robot::MonoFrame* frame, std::string* error) const;
 
  private:
+  /// recording.json and the calibration it names (stereo_, source_, rig_/camera_, calibration_).
+  void readMeta(const std::string& meta_path);
   bool readImage(const std::string& rel, const Intrinsics& cam, cv::Mat* out,
                  std::string* error) const;
 

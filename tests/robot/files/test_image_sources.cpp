@@ -1,7 +1,9 @@
 // Image folders (sorted, stamps files), stereo folder pairs, video files, webcams: frames, stamps
 // and the one-line errors for bad input.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
+#include <chrono>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/videoio.hpp>
 
@@ -85,7 +87,7 @@ TEST(ImageFolder, BadFoldersAndStampsAreOneLineErrors) {
             (d / "none").string() + ": no such folder");
   fs::create_directories(d);
   EXPECT_EQ(configErrorOf([&] { files::listImages(d.string(), {}); }),
-            d.string() + ": no image files in the folder");
+            d.string() + ": no image files in the folder: nothing to do");
   writeImages(d, 3);
   const auto stampsError = [&](const std::string& text) {
     std::ofstream(d / "stamps.txt") << text;
@@ -98,6 +100,41 @@ TEST(ImageFolder, BadFoldersAndStampsAreOneLineErrors) {
   EXPECT_EQ(stampsError("0.1 img_0.png\n0.2 gone.png\n"),
             s + ": line 2: " + (d / "gone.png").string() + ": no such file");
   EXPECT_EQ(stampsError("0.1 img_0.png\n0.2\n"), s + ": line 2: mixes 'STAMP' and 'STAMP FILE' lines");
+}
+
+// Memory bombs: a stamps file is bounded by its size before it is read, and by its
+// line length as it is read (core/file.h forEachLine); sparse files make them cheap.
+TEST(ImageFolder, StampsFileBombsAreOneLineErrorsInBoundedTime) {
+  const fs::path d = testDir();
+  writeImages(d, 3);
+  const std::string s = (d / "stamps.txt").string();
+  const auto timedError = [&](double* seconds) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const std::string e = configErrorOf([&] { files::listImages(d.string(), {}); });
+    *seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    EXPECT_EQ(e.find('\n'), std::string::npos) << e;
+    return e;
+  };
+  double t = 0;
+  // Three stamps, then 4 GiB of NUL bytes: stopped at line 4, not read.
+  std::ofstream(s) << "0.1\n0.2\n0.3\n";
+  fs::resize_file(s, fs::file_size(s) + (uintmax_t{4} << 30));
+  EXPECT_EQ(timedError(&t), s + ": is 4294967308 bytes, more than the limit of 1073741824");
+  EXPECT_LT(t, 0.5);
+  fs::resize_file(s, uintmax_t{512} << 20);  // under the size limit: the line limit stops it
+  EXPECT_EQ(timedError(&t), s + ": line 4: longer than the limit of 65536 bytes");
+  EXPECT_LT(t, 2.0);
+  // A long line of digits without '\n'.
+  std::ofstream(s) << "0.1\n" << std::string(1 << 20, '3');
+  EXPECT_EQ(timedError(&t), s + ": line 2: longer than the limit of 65536 bytes");
+  // A FIFO given as the stamps file: refused, no hang.
+  const fs::path fifo = d / "pipe.txt";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  fs::remove(s);
+  files::FolderOptions o;
+  o.stamps_file = fifo.string();
+  EXPECT_EQ(configErrorOf([&] { files::listImages(d.string(), o); }),
+            fifo.string() + ": is a FIFO, not a regular file");
 }
 
 TEST(ImageFolder, AFrameOfTheWrongSizeIsAnErrorAndTheNextFrameIsRead) {
@@ -181,6 +218,20 @@ TEST(VideoFile, MissingAndUndecodableVideosAreOneLineErrors) {
   const std::string e = configErrorOf([&] { files::makeVideoSource((d / "garbage.mp4").string(), smallCamera()); });
   EXPECT_EQ(e.rfind((d / "garbage.mp4").string() + ": cannot decode as a video", 0), 0u) << e;
   EXPECT_EQ(e.find('\n'), std::string::npos);
+}
+
+// "Nothing to do" is said: a video whose container declares no frame.
+TEST(VideoFile, AVideoWithoutFramesSaysNothingToDo) {
+  const fs::path d = testDir();
+  fs::create_directories(d);
+  const std::string path = (d / "empty.avi").string();
+  {
+    cv::VideoWriter w(path, cv::CAP_FFMPEG, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 10,
+                      cv::Size(64, 48), false);
+    ASSERT_TRUE(w.isOpened());
+  }
+  EXPECT_EQ(configErrorOf([&] { files::makeVideoSource(path, smallCamera(64, 48)); }),
+            path + ": has no frames (an empty video): nothing to do");
 }
 
 TEST(Webcam, ADeviceThatDoesNotExistIsAOneLineError) {

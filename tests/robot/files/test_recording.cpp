@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/resource.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -404,4 +405,103 @@ TEST(Recording, AnIndexThatCannotGrowIsAnErrorAndLeavesNoPartialLine) {
   // The frame whose line could not be written left no images.
   EXPECT_FALSE(fs::exists(dir / "frames" / (std::string(failed_at < 10 ? "00000" : "0000") +
                                             std::to_string(failed_at) + "_left.png")));
+}
+
+namespace {
+
+// A mono recording of `frames` small frames in a fresh folder named after the test.
+fs::path monoRecording(const std::string& name, int frames) {
+  const fs::path d = testDir(name);
+  std::mt19937_64 rng(8);
+  auto w = RecordingWriter::createMono(d.string(), smallCamera(16, 12), options());
+  for (int i = 0; i < frames; ++i) {
+    robot::MonoFrame f;
+    f.image = noiseImage(rng, 16, 12);
+    f.stamp = i * 0.1;
+    f.index = i;
+    EXPECT_TRUE(w->write(f).ok);
+  }
+  return d;
+}
+
+// The one-line ConfigError of Recording::open and the seconds it took.
+std::pair<std::string, double> openError(const fs::path& d) {
+  const auto t0 = std::chrono::steady_clock::now();
+  std::string e = "(no error)";
+  try {
+    Recording::open(d.string());
+  } catch (const ConfigError& x) {
+    e = x.what();
+  }
+  return {e, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count()};
+}
+
+}  // namespace
+
+// Memory bombs: the index and recording.json are bounded before anything is read into memory
+// (core/file.h forEachLine / readRegularFile). Sparse files make them cheap.
+TEST(Recording, IndexAndMetadataBombsAreOneLineErrorsInBoundedTime) {
+  const fs::path d = monoRecording("", 3);
+  const std::string index = (d / "index.jsonl").string(), meta = (d / "recording.json").string();
+  const uintmax_t good_size = fs::file_size(index);
+  // Three good lines, then 6 GiB of NUL bytes (no '\n'): over the size limit, refused from its size.
+  fs::resize_file(index, good_size + (uintmax_t{6} << 30));
+  auto [e, s] = openError(d);
+  EXPECT_EQ(e, index + ": is " + std::to_string(good_size + (uintmax_t{6} << 30)) +
+                   " bytes, more than the limit of 4294967296");
+  EXPECT_LT(s, 0.5);
+  // Under the size limit (3 GiB of NUL bytes): the line limit stops the read at line 4.
+  fs::resize_file(index, good_size + (uintmax_t{3} << 30));
+  std::tie(e, s) = openError(d);
+  EXPECT_EQ(e, index + ": line 4: longer than the limit of 1048576 bytes");
+  EXPECT_LT(s, 2.0);
+  fs::resize_file(index, files::kMaxIndexBytes + 1);
+  std::tie(e, s) = openError(d);
+  EXPECT_EQ(e, index + ": is 4294967297 bytes, more than the limit of 4294967296");
+  // A long line of text with no NUL: the same limit.
+  fs::resize_file(index, good_size);
+  std::ofstream(index, std::ios::app) << "{\"frame\": 3, \"index\": \"" << std::string(3 << 20, '9');
+  std::tie(e, s) = openError(d);
+  EXPECT_EQ(e, index + ": line 4: longer than the limit of 1048576 bytes");
+  // recording.json is a configuration file: 4 MiB at most.
+  fs::resize_file(index, good_size);
+  fs::resize_file(meta, uintmax_t{1} << 30);
+  std::tie(e, s) = openError(d);
+  EXPECT_EQ(e, meta + ": is 1073741824 bytes, more than the limit of 4194304");
+  EXPECT_LT(s, 0.5);
+}
+
+TEST(Recording, FifosInARecordingAreOneLineErrorsNotHangs) {
+  const fs::path d = monoRecording("", 2);
+  // A frame the index names is a FIFO: the recording ends before it (PNG check without blocking).
+  fs::remove(d / "frames/000001.png");
+  ASSERT_EQ(::mkfifo((d / "frames/000001.png").c_str(), 0600), 0);
+  const Recording rec = Recording::open(d.string());
+  EXPECT_EQ(rec.entries().size(), 1u);
+  EXPECT_NE(rec.warning().find("000001.png is missing or truncated; read the 1 frames before it"),
+            std::string::npos)
+      << rec.warning();
+  for (const char* name : {"index.jsonl", "recording.json"}) {
+    const fs::path p = d / name, saved = d / (std::string(name) + ".saved");
+    fs::rename(p, saved);
+    ASSERT_EQ(::mkfifo(p.c_str(), 0600), 0);
+    EXPECT_EQ(openError(d).first, p.string() + ": is a FIFO, not a regular file");
+    fs::remove(p);
+    fs::rename(saved, p);
+  }
+}
+
+// "Nothing to do" is said: a recording without a frame to read is an error, not an empty success.
+TEST(Recording, ARecordingWithoutFramesSaysNothingToDo) {
+  const fs::path d = monoRecording("", 0);
+  const std::string index = (d / "index.jsonl").string();
+  EXPECT_EQ(openError(d).first, index + ": no frames (an empty recording): nothing to do");
+  std::ofstream(index) << "{\"frame\": 0, \"ind\n";
+  EXPECT_EQ(openError(d).first,
+            index + ": line 1: not valid JSON; no frame before it: nothing to do");
+  std::ofstream(index) << std::string(100, '\0');  // a crash's NUL tail and nothing before it
+  EXPECT_EQ(openError(d).first,
+            index + ": line 1: truncated (no end of line); no frame before it: nothing to do");
+  fs::remove(index);
+  EXPECT_EQ(openError(d).first, index + ": missing");
 }
