@@ -173,12 +173,11 @@ EnonGraspResult runEnonGraspSession(const EnonGraspOptions& o, std::FILE* progre
   const auto start = std::chrono::steady_clock::now();
   Seconds t = 0;
   std::string output_error;
+  int interrupted_by = 0;  // SIGINT or SIGTERM received mid-run (0: none)
   for (int64_t k = 0; !ctl.finished(); ++k) {
     t = static_cast<double>(k) * dt;
     if (o.interruptible && tool::interruptedBy()) {
-      const int sig = tool::interruptedBy();
-      r.error = std::string("interrupted by ") + (sig == SIGINT ? "SIGINT" : "SIGTERM") + " (robot stopped)";
-      r.exit_code = tool::interruptedCode(sig);
+      interrupted_by = tool::interruptedBy();
       break;
     }
     if (t > max_time) {
@@ -216,8 +215,10 @@ EnonGraspResult runEnonGraspSession(const EnonGraspOptions& o, std::FILE* progre
     r.final_position_mm = 1000 * r.report.close_position_error_m;
     r.final_rotation_deg = r.report.close_rotation_error_rad * 180 / M_PI;
   }
-  if (r.exit_code > kExitOutput) {
-    // interrupted: the code and line set in the loop
+  if (interrupted_by) {
+    r.exit_code = tool::interruptedCode(interrupted_by);
+    r.error = std::string("interrupted by ") + (interrupted_by == SIGINT ? "SIGINT" : "SIGTERM") +
+              " (robot stopped)";
   } else if (!output_error.empty()) {
     r.exit_code = kExitOutput;
     r.error = output_error;
