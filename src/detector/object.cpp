@@ -143,17 +143,77 @@ ObjectModel textureObject(const std::string& name, const cv::Mat& texture_gray, 
                          Pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0, 0, z_ref_m)));
 }
 
-ObjectModel loadObjectDefinition(const std::string& path) {
-  const YamlFile f(path);
-  const YAML::Node& r = f.root();
-  f.onlyKeys(r, "", {"name", "reference_image", "camera", "reference_pose", "pattern_region",
-                     "pattern_plane", "pattern_region_exact"});
-  const std::string name = f.string(r, "name", fs::path(path).stem().string());
+ObjectModel cylinderObject(const std::string& name, const cv::Mat& label_gray, double radius_m,
+                           double label_width_m, double label_height_m, std::vector<Eigen::Vector2d> polygon,
+                           const std::string& source) {
+  const std::string where = source.empty() ? "object '" + name + "'" : source;
+  if (label_gray.empty()) throw ConfigError(where, "reference_image", "empty image");
+  CylinderLabel label;
+  label.radius_m = radius_m;
+  label.width_m = label_width_m;
+  label.height_m = label_height_m;
+  label.image_width = label_gray.cols;
+  label.image_height = label_gray.rows;
+  label.check(where);
+  // The flat label seen square-on from z_ref: f = W z / w across, H z / h down (a label's pixels
+  // need not be square on the surface).
+  constexpr double z_ref = 0.5;
+  Intrinsics cam = Intrinsics::pinhole(label_gray.cols, label_gray.rows, label_gray.cols * z_ref / label_width_m,
+                                       (label_gray.cols - 1) / 2.0, (label_gray.rows - 1) / 2.0);
+  cam.fy = label_gray.rows * z_ref / label_height_m;
+  ObjectModel m = makeObjectModel(name, label_gray, cam, Pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0, 0, z_ref)),
+                                  std::move(polygon), Eigen::Vector3d::UnitZ(), 0, source);
+  m.cylinder = label;
+  return m;
+}
 
+namespace {
+
+// A canonical name for a definition file, to find cycles among several-view definitions.
+std::string canonicalPath(const std::string& path) {
+  std::error_code ec;
+  const fs::path c = fs::weakly_canonical(fs::path(path), ec);
+  return ec ? path : c.string();
+}
+
+std::vector<Eigen::Vector2d> readPolygon(const YamlFile& f, const YAML::Node& r) {
+  std::vector<Eigen::Vector2d> polygon;
+  if (!f.has(r, "pattern_region")) return polygon;
+  const YAML::Node seq = f.get(r, "pattern_region");
+  if (!seq.IsSequence()) f.fail("pattern_region", "expected a list of [u, v] points");
+  if (seq.size() > kMaxRegionPoints)
+    f.fail("pattern_region", std::to_string(seq.size()) + " points, more than the limit of " +
+                                 std::to_string(kMaxRegionPoints));
+  for (size_t i = 0; i < seq.size(); ++i) {
+    const std::string field = "pattern_region[" + std::to_string(i) + "]";
+    if (!seq[i].IsSequence() || seq[i].size() != 2) f.fail(field, "expected [u, v]");
+    Eigen::Vector2d p;
+    for (int k = 0; k < 2; ++k) {
+      if (!seq[i][k].IsScalar()) f.fail(field, "expected two numbers");
+      try {
+        p[k] = seq[i][k].as<double>();
+      } catch (const YAML::Exception&) {
+        f.fail(field, "expected two numbers");
+      }
+    }
+    if (!p.allFinite()) f.fail(field, "must be finite");
+    polygon.push_back(p);
+  }
+  return polygon;
+}
+
+cv::Mat readReference(const YamlFile& f, const YAML::Node& r) {
   const std::string image_path = f.resolve(f.string(r, "reference_image"));
   const ImageRead image = readImage(image_path, ImageMode::kGray);
   if (!image.ok()) f.fail("reference_image", image.error);
+  return image.image;
+}
 
+ObjectModel loadPlanar(const YamlFile& f, const std::string& name) {
+  const YAML::Node& r = f.root();
+  f.onlyKeys(r, "", {"name", "reference_image", "camera", "reference_pose", "pattern_region",
+                     "pattern_plane", "pattern_region_exact"});
+  const cv::Mat reference = readReference(f, r);
   std::optional<Intrinsics> camera;
   if (f.has(r, "camera")) {
     try {
@@ -164,30 +224,7 @@ ObjectModel loadObjectDefinition(const std::string& path) {
   }
   std::optional<Pose> ref_cMo;
   if (f.has(r, "reference_pose")) ref_cMo = f.pose(r, "reference_pose");
-
-  std::vector<Eigen::Vector2d> polygon;
-  if (f.has(r, "pattern_region")) {
-    const YAML::Node seq = f.get(r, "pattern_region");
-    if (!seq.IsSequence()) f.fail("pattern_region", "expected a list of [u, v] points");
-    if (seq.size() > kMaxRegionPoints)
-      f.fail("pattern_region", std::to_string(seq.size()) + " points, more than the limit of " +
-                                   std::to_string(kMaxRegionPoints));
-    for (size_t i = 0; i < seq.size(); ++i) {
-      const std::string field = "pattern_region[" + std::to_string(i) + "]";
-      if (!seq[i].IsSequence() || seq[i].size() != 2) f.fail(field, "expected [u, v]");
-      Eigen::Vector2d p;
-      for (int k = 0; k < 2; ++k) {
-        if (!seq[i][k].IsScalar()) f.fail(field, "expected two numbers");
-        try {
-          p[k] = seq[i][k].as<double>();
-        } catch (const YAML::Exception&) {
-          f.fail(field, "expected two numbers");
-        }
-      }
-      if (!p.allFinite()) f.fail(field, "must be finite");
-      polygon.push_back(p);
-    }
-  }
+  const std::vector<Eigen::Vector2d> polygon = readPolygon(f, r);
   Eigen::Vector3d normal = Eigen::Vector3d::UnitZ();
   double offset = 0;
   if (f.has(r, "pattern_plane")) {
@@ -195,9 +232,88 @@ ObjectModel loadObjectDefinition(const std::string& path) {
     if (f.has(r, "pattern_plane.normal")) normal = f.vec3(r, "pattern_plane.normal");
     offset = f.number(r, "pattern_plane.offset", 0.0);
   }
-  ObjectModel m = makeObjectModel(name, image.image, camera, ref_cMo, polygon, normal, offset, path);
+  ObjectModel m = makeObjectModel(name, reference, camera, ref_cMo, polygon, normal, offset, f.path());
   m.pattern_region_exact = f.boolean(r, "pattern_region_exact", true);
   return m;
+}
+
+ObjectModel loadCylinder(const YamlFile& f, const std::string& name) {
+  const YAML::Node& r = f.root();
+  f.onlyKeys(r, "", {"name", "reference_image", "cylinder", "pattern_region", "pattern_region_exact"});
+  f.onlyKeys(f.get(r, "cylinder"), "cylinder", {"radius_m", "label_size_m"});
+  const double radius = f.number(r, "cylinder.radius_m");
+  const std::vector<double> size = f.numbers(r, "cylinder.label_size_m", 2);
+  const cv::Mat label = readReference(f, r);
+  const std::vector<Eigen::Vector2d> polygon = readPolygon(f, r);
+  ObjectModel m = cylinderObject(name, label, radius, size[0], size[1], polygon, f.path());
+  m.pattern_region_exact = f.boolean(r, "pattern_region_exact", true);
+  return m;
+}
+
+ObjectModel loadDefinition(const std::string& path, std::vector<std::string>* stack);
+
+ObjectModel loadViews(const YamlFile& f, const std::string& name, std::vector<std::string>* stack) {
+  const YAML::Node& r = f.root();
+  f.onlyKeys(r, "", {"name", "views"});
+  const YAML::Node seq = f.get(r, "views");
+  if (!seq.IsSequence() || seq.size() == 0) f.fail("views", "expected a non-empty list of {definition, oMv}");
+  constexpr size_t kMaxViews = 64;
+  if (seq.size() > kMaxViews)
+    f.fail("views", std::to_string(seq.size()) + " views, more than the limit of " + std::to_string(kMaxViews));
+  ObjectModel m;
+  m.name = name;
+  m.source = f.path();
+  for (size_t i = 0; i < seq.size(); ++i) {
+    const std::string field = "views[" + std::to_string(i) + "]";
+    f.onlyKeys(seq[i], field, {"definition", "oMv"});
+    std::string def;
+    ObjectView v;
+    try {  // the accessors name fields relative to the list entry
+      def = f.resolve(f.string(seq[i], "definition"));
+      v.oMv = f.pose(seq[i], "oMv");
+    } catch (const ConfigError& e) {
+      f.fail(field + "." + e.field(), e.problem());
+    }
+    const std::string def_field = field + ".definition";
+    const std::string canonical = canonicalPath(def);
+    for (const std::string& s : *stack)
+      if (s == canonical) f.fail(def_field, "cycle: " + def + " includes " + f.path());
+    std::shared_ptr<ObjectModel> view;
+    try {
+      view = std::make_shared<ObjectModel>(loadDefinition(def, stack));
+    } catch (const ConfigError& e) {
+      f.fail(def_field, e.what());
+    }
+    if (view->isMultiView())
+      f.fail(def_field, def + " has views of its own (a view is planar with reference_pose, or a cylinder)");
+    if (!view->has3d())
+      f.fail(def_field, def + " has no metric geometry (a view is planar with reference_pose, or a cylinder)");
+    v.name = view->name;
+    for (const ObjectView& o : m.views)
+      if (o.name == v.name) f.fail(def_field, "a second view named '" + v.name + "' (view names must differ)");
+    v.model = view;
+    m.views.push_back(std::move(v));
+  }
+  return m;
+}
+
+ObjectModel loadDefinition(const std::string& path, std::vector<std::string>* stack) {
+  const YamlFile f(path);
+  const YAML::Node& r = f.root();
+  const std::string name = f.string(r, "name", fs::path(path).stem().string());
+  stack->push_back(canonicalPath(path));
+  ObjectModel m = f.has(r, "views")      ? loadViews(f, name, stack)
+                  : f.has(r, "cylinder") ? loadCylinder(f, name)
+                                         : loadPlanar(f, name);
+  stack->pop_back();
+  return m;
+}
+
+}  // namespace
+
+ObjectModel loadObjectDefinition(const std::string& path) {
+  std::vector<std::string> stack;
+  return loadDefinition(path, &stack);
 }
 
 }  // namespace refgrasp::detector

@@ -17,18 +17,48 @@
 //   pattern_plane: {normal: [0,0,1], offset: 0.0}   # optional, object frame: n.X = offset
 //
 // Without reference_pose the object is 2D-only: detections give H and corners, no cMo.
+//
+// A label on a cylinder (a can, a bottle, a jar); object frame and label geometry in
+// core/cylinder.h:
+//
+//   name: soda_can
+//   reference_image: soda_can_label.png  # the label unrolled flat: columns along the circumference
+//   cylinder:
+//     radius_m: 0.033                    # radius of the surface the label is wrapped on
+//     label_size_m: [0.2073, 0.115]      # the image's full width (arc length) and height there
+//   pattern_region: [[u,v], ...]         # optional, label px, as above
+//
+// An object of several views (the faces of a box; a can's label and its lid):
+//
+//   name: tea_box
+//   views:
+//     - definition: tea_box_front.yaml   # planar with reference_pose, or cylinder (relative to
+//       oMv: {translation: [0, 0, 0], rotation_vector: [0, 0, 0]}   # this file); that view's
+//     - definition: tea_box_left.yaml    # object frame in this object's frame (metres, radians)
+//       oMv: {translation: [-0.1, 0, 0.035], rotation_vector: [0, 1.5708, 0]}
 #include <Eigen/Core>
 #include <array>
+#include <memory>
 #include <opencv2/core.hpp>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "core/camera.h"
+#include "core/cylinder.h"
 #include "core/pose.h"
 #include "detector/pose.h"
 
 namespace refgrasp::detector {
+
+struct ObjectModel;
+
+/// One view of a several-view object.
+struct ObjectView {
+  std::string name;                          ///< the view definition's name (unique in the object)
+  std::shared_ptr<const ObjectModel> model;  ///< planar with a reference pose, or a cylinder
+  Pose oMv;  ///< the view's object frame in the several-view object's frame (metres, radians)
+};
 
 struct ObjectModel {
   std::string name;
@@ -49,8 +79,16 @@ struct ObjectModel {
   std::array<Eigen::Vector2d, 4> corners_px;
   /// 3D data for pose estimation (undistorted reference px); empty for 2D-only objects.
   std::optional<PlanarTarget> target;
+  /// A label on a cylinder: `reference` is the unrolled label, `camera` and `reference_cMo` a
+  /// synthetic pinhole seeing it flat (cylinderObject), and `target` the flat label on the
+  /// tangent plane at its centre, z = 0 in the object frame: the paper's planar approximation.
+  std::optional<CylinderLabel> cylinder;
+  /// A several-view object: its views; `reference` is empty and `target` unset.
+  std::vector<ObjectView> views;
 
   bool has3d() const { return target.has_value(); }
+  bool isCylinder() const { return cylinder.has_value(); }
+  bool isMultiView() const { return !views.empty(); }
 };
 
 /// Validates the pieces and fills corners_px and target. Throws ConfigError(source or name, field,
@@ -69,7 +107,13 @@ ObjectModel textureObject(const std::string& name, const cv::Mat& texture_gray, 
 /// The reference camera textureObject() uses.
 Intrinsics textureCamera(const cv::Mat& texture, double width_m, double z_ref_m);
 
-/// Reads an object definition YAML. Throws ConfigError("<file>: <field>: <problem>").
+/// A cylinder object from its unrolled label (8-bit gray, label.image_width x image_height set
+/// from it): the checks of makeObjectModel plus CylinderLabel::check.
+ObjectModel cylinderObject(const std::string& name, const cv::Mat& label_gray, double radius_m,
+                           double label_width_m, double label_height_m,
+                           std::vector<Eigen::Vector2d> pattern_polygon_px = {}, const std::string& source = "");
+
+/// Reads an object definition YAML (any of the three forms above). Throws ConfigError("<file>: <field>: <problem>").
 ObjectModel loadObjectDefinition(const std::string& path);
 
 }  // namespace refgrasp::detector

@@ -189,3 +189,97 @@ TEST(ShippedObjects, EveryDefinitionLoadsWith3dCorners) {
   }
   EXPECT_GE(n, 5);
 }
+
+TEST_F(ObjectFile, CylinderDefinitionAsDocumented) {
+  // The documented example, with the test's 400x300 texture as the label.
+  const ObjectModel m = loadObjectDefinition(write("soda_can.yaml", R"(name: soda_can
+reference_image: tex.png   # the label unrolled flat
+cylinder:
+  radius_m: 0.033
+  label_size_m: [0.2073, 0.115]
+)"));
+  ASSERT_TRUE(m.isCylinder());
+  EXPECT_FALSE(m.isMultiView());
+  EXPECT_EQ(m.name, "soda_can");
+  EXPECT_DOUBLE_EQ(m.cylinder->radius_m, 0.033);
+  EXPECT_DOUBLE_EQ(m.cylinder->width_m, 0.2073);
+  EXPECT_DOUBLE_EQ(m.cylinder->height_m, 0.115);
+  EXPECT_EQ(m.cylinder->image_width, 400);
+  EXPECT_EQ(m.cylinder->image_height, 300);
+  EXPECT_TRUE(m.cylinder->fullWrap());  // 0.2073 m is 2 pi 0.033 m
+  // The planar approximation: the flat label on the tangent plane z = 0, corners at (+-w/2, +-h/2).
+  ASSERT_TRUE(m.has3d());
+  const std::array<Eigen::Vector3d, 4> want = {Eigen::Vector3d(-0.10365, -0.0575, 0), Eigen::Vector3d(0.10365, -0.0575, 0),
+                                               Eigen::Vector3d(0.10365, 0.0575, 0), Eigen::Vector3d(-0.10365, 0.0575, 0)};
+  for (int i = 0; i < 4; ++i) EXPECT_NEAR((m.target->corners_o[i] - want[i]).norm(), 0, 1e-9) << i;
+}
+
+TEST_F(ObjectFile, SeveralViewDefinitionAsDocumented) {
+  write("front.yaml", std::string("name: tea_box_front\nreference_image: tex.png\ncamera: cam.yaml\n") + kPose);
+  write("left.yaml", std::string("name: tea_box_left\nreference_image: tex.png\ncamera: cam.yaml\n") + kPose);
+  write("can.yaml", "name: can\nreference_image: tex.png\ncylinder: {radius_m: 0.05, label_size_m: [0.2, 0.15]}\n");
+  const ObjectModel m = loadObjectDefinition(write("tea_box.yaml", R"(name: tea_box
+views:
+  - definition: front.yaml
+    oMv: {translation: [0, 0, 0], rotation_vector: [0, 0, 0]}
+  - definition: left.yaml
+    oMv: {translation: [-0.1, 0, 0.035], rotation_vector: [0, 1.5708, 0]}
+  - definition: can.yaml
+    oMv: {translation: [0, 0.2, 0], rotation_vector: [0, 0, 0]}
+)"));
+  ASSERT_TRUE(m.isMultiView());
+  ASSERT_EQ(m.views.size(), 3u);
+  EXPECT_EQ(m.views[0].name, "tea_box_front");
+  EXPECT_EQ(m.views[1].name, "tea_box_left");
+  EXPECT_TRUE(m.views[2].model->isCylinder());
+  EXPECT_NEAR((m.views[1].oMv.t - Eigen::Vector3d(-0.1, 0, 0.035)).norm(), 0, 1e-12);
+  EXPECT_NEAR(m.views[1].oMv.rotationVector().y(), 1.5708, 1e-12);
+  EXPECT_TRUE(m.views[0].model->has3d());
+}
+
+TEST_F(ObjectFile, BadCylindersAndViewsGiveOneLineErrorsNamingFileAndField) {
+  write("flat.yaml", "name: flat\nreference_image: tex.png\n");  // 2D-only: no metric geometry
+  write("good.yaml", std::string("name: good\nreference_image: tex.png\ncamera: cam.yaml\n") + kPose);
+  write("cycle_b.yaml", "views:\n  - {definition: cycle_a.yaml, oMv: {translation: [0, 0, 0], rotation_vector: [0, 0, 0]}}\n");
+  const std::string id = ", oMv: {translation: [0, 0, 0], rotation_vector: [0, 0, 0]}}\n";
+  struct Case {
+    std::string name, yaml, field;
+  };
+  const std::vector<Case> cases = {
+      {"r_zero.yaml", "reference_image: tex.png\ncylinder: {radius_m: 0, label_size_m: [0.1, 0.1]}\n",
+       "cylinder.radius_m"},
+      {"r_negative.yaml", "reference_image: tex.png\ncylinder: {radius_m: -0.03, label_size_m: [0.1, 0.1]}\n",
+       "cylinder.radius_m"},
+      {"too_wide.yaml", "reference_image: tex.png\ncylinder: {radius_m: 0.03, label_size_m: [0.2, 0.1]}\n",
+       "cylinder.label_size_m"},
+      {"size_one.yaml", "reference_image: tex.png\ncylinder: {radius_m: 0.03, label_size_m: [0.1]}\n",
+       "cylinder.label_size_m"},
+      {"no_radius.yaml", "reference_image: tex.png\ncylinder: {label_size_m: [0.1, 0.1]}\n", "cylinder.radius_m"},
+      {"cyl_typo.yaml", "reference_image: tex.png\ncylinder: {radius_m: 0.03, label_size: [0.1, 0.1]}\n",
+       "cylinder.label_size"},
+      {"cyl_pose.yaml", std::string("reference_image: tex.png\ncamera: cam.yaml\n") + kPose +
+                            "cylinder: {radius_m: 0.03, label_size_m: [0.1, 0.1]}\n",
+       "camera"},
+      {"views_empty.yaml", "views: []\n", "views"},
+      {"views_missing.yaml", "views:\n  - {definition: nothere.yaml" + id, "views[0].definition"},
+      {"views_2d.yaml", "views:\n  - {definition: good.yaml" + id + "  - {definition: flat.yaml" + id,
+       "views[1].definition"},
+      {"views_self.yaml", "views:\n  - {definition: views_self.yaml" + id, "views[0].definition"},
+      {"cycle_a.yaml", "views:\n  - {definition: cycle_b.yaml" + id, "views[0].definition"},
+      {"views_twice.yaml", "views:\n  - {definition: good.yaml" + id + "  - {definition: good.yaml" + id,
+       "views[1].definition"},
+      {"views_no_pose.yaml", "views:\n  - {definition: good.yaml}\n", "views[0].oMv"},
+      {"views_bad_pose.yaml",
+       "views:\n  - {definition: good.yaml, oMv: {translation: [0, .nan, 0], rotation_vector: [0, 0, 0]}}\n",
+       "views[0].oMv.translation"},
+      {"views_extra.yaml", "reference_image: tex.png\nviews:\n  - {definition: good.yaml" + id, "reference_image"},
+  };
+  for (const Case& c : cases) {
+    const std::string msg = loadError(c.name, c.yaml);
+    ASSERT_FALSE(msg.empty()) << c.name << " loaded";
+    EXPECT_EQ(msg.rfind(testDir().string(), 0), 0u) << msg;  // the file comes first
+    EXPECT_NE(msg.find(c.name), std::string::npos) << msg;
+    EXPECT_NE(msg.find(c.field), std::string::npos) << c.name << ": " << msg;
+    EXPECT_EQ(msg.find('\n'), std::string::npos) << msg;
+  }
+}

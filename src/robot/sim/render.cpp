@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
+#include "core/cylinder.h"
 #include "core/geometry.h"
 #include "core/error.h"
 
@@ -311,6 +312,224 @@ void drawPlane(cv::Mat& canvas, cv::Mat& inv_depth, const Eigen::Matrix3d& K, co
   }
 }
 
+void checkCylinder(const TexturedCylinder& c) {
+  refgrasp::check(!c.label.empty() && c.label.type() == CV_8UC1, "TexturedCylinder.label",
+                  "must be a non-empty CV_8UC1 image");
+  for (const cv::Mat* t : {&c.side_texture, &c.cap_texture})
+    refgrasp::check(t->empty() || t->type() == CV_8UC1, "TexturedCylinder", "textures must be CV_8UC1");
+  refgrasp::check(std::isfinite(c.radius_m) && c.radius_m > 0 && std::isfinite(c.height_m) && c.height_m > 0 &&
+                      std::isfinite(c.label_width_m) && c.label_width_m > 0 && std::isfinite(c.label_height_m) &&
+                      c.label_height_m > 0 && c.label_width_m <= 2 * M_PI * c.radius_m * 1.01,
+                  "TexturedCylinder", "radius, height and label size must be positive, the label at most 2 pi r wide");
+  refgrasp::check(c.cMo.isFinite(), "TexturedCylinder.cMo", "must be finite");
+}
+
+// Bilinear sample of a level-L pyramid image at level-0 coordinates (u, v), border replicated.
+float samplePyramid(const std::vector<cv::Mat>& pyr, int level, double u, double v) {
+  const cv::Mat& t = pyr[static_cast<size_t>(level)];
+  const double s = std::ldexp(1.0, -level);
+  const double x = std::clamp(u * s, 0.0, t.cols - 1.0), y = std::clamp(v * s, 0.0, t.rows - 1.0);
+  const int ix = static_cast<int>(x), iy = static_cast<int>(y);
+  const int ix1 = std::min(ix + 1, t.cols - 1), iy1 = std::min(iy + 1, t.rows - 1);
+  const float fx = static_cast<float>(x - ix), fy = static_cast<float>(y - iy);
+  const uchar* r0 = t.ptr<uchar>(iy);
+  const uchar* r1 = t.ptr<uchar>(iy1);
+  const float top = r0[ix] + fx * (r0[ix1] - r0[ix]);
+  const float bottom = r1[ix] + fx * (r1[ix1] - r1[ix]);
+  return top + fy * (bottom - top);
+}
+
+// A pyramid level for `minification` texels per pixel (as drawPlane chooses it).
+int levelFor(double minification, int max_level) {
+  if (!(minification >= 2)) return 0;
+  return std::min(max_level, static_cast<int>(std::floor(std::log2(minification))));
+}
+
+int maxLevelOf(const cv::Mat& tex, bool mipmap) {
+  return mipmap ? std::max(0, static_cast<int>(std::floor(std::log2(std::min(tex.cols, tex.rows) / 8.0)))) : 0;
+}
+
+// Ray casting of one cylinder: per pixel the nearest hit of the side or a cap, shaded from the
+// label, the side texture or the cap texture. Pixels on the silhouette (their hit status differs
+// from a neighbour's) are supersampled 4 x 4 and blended over what is there.
+class CylinderDrawer {
+ public:
+  CylinderDrawer(const TexturedCylinder& c, const Eigen::Matrix3d& K, const RenderOptions& opt)
+      : c_(c), opt_(opt), K_(K), Kinv_(K.inverse()), oMc_(c.cMo.inverse()) {
+    label_.radius_m = c.radius_m;
+    label_.width_m = c.label_width_m;
+    label_.height_m = c.label_height_m;
+    label_.image_width = c.label.cols;
+    label_.image_height = c.label.rows;
+    f_ = std::sqrt(K(0, 0) * K(1, 1));
+  }
+
+  void draw(cv::Mat& canvas, cv::Mat& inv_depth) {
+    const cv::Rect roi = bounds(canvas.size());
+    if (roi.empty()) return;
+    prepareTextures();
+    cv::Mat hit(roi.size(), CV_8U, cv::Scalar(0));
+    cv::Mat value(roi.size(), CV_32F, cv::Scalar(0));
+    cv::Mat iz(roi.size(), CV_32F, cv::Scalar(0));
+    for (int y = 0; y < roi.height; ++y)
+      for (int x = 0; x < roi.width; ++x) {
+        Sample s;
+        if (!shade(x + roi.x, y + roi.y, &s)) continue;
+        hit.at<uchar>(y, x) = 1;
+        value.at<float>(y, x) = s.value;
+        iz.at<float>(y, x) = s.inv_depth;
+      }
+    for (int y = 0; y < roi.height; ++y) {
+      uchar* d = canvas.ptr<uchar>(y + roi.y) + roi.x;
+      float* zb = inv_depth.ptr<float>(y + roi.y) + roi.x;
+      for (int x = 0; x < roi.width; ++x) {
+        const bool in = hit.at<uchar>(y, x) != 0;
+        bool edge = false;
+        if (opt_.antialias_edges)
+          for (int dy = -1; dy <= 1 && !edge; ++dy)
+            for (int dx = -1; dx <= 1 && !edge; ++dx) {
+              const int yy = y + dy, xx = x + dx;
+              const bool n = yy >= 0 && xx >= 0 && yy < roi.height && xx < roi.width && hit.at<uchar>(yy, xx) != 0;
+              edge = n != in;
+            }
+        if (!edge) {
+          if (in && iz.at<float>(y, x) >= zb[x]) {
+            d[x] = static_cast<uchar>(std::clamp(value.at<float>(y, x) + 0.5f, 0.0f, 255.0f));
+            zb[x] = iz.at<float>(y, x);
+          }
+          continue;
+        }
+        // Silhouette pixel: 4 x 4 samples; coverage blends over what is drawn unless that is nearer.
+        double sum = 0, nearest = 0;
+        int n = 0;
+        for (int sy = 0; sy < 4; ++sy)
+          for (int sx = 0; sx < 4; ++sx) {
+            Sample s;
+            if (!shade(x + roi.x - 0.375 + 0.25 * sx, y + roi.y - 0.375 + 0.25 * sy, &s)) continue;
+            sum += s.value;
+            nearest = std::max(nearest, static_cast<double>(s.inv_depth));
+            ++n;
+          }
+        if (n == 0 || nearest < zb[x]) continue;
+        const double alpha = n / 16.0;
+        d[x] = static_cast<uchar>(std::clamp(alpha * sum / n + (1 - alpha) * d[x] + 0.5, 0.0, 255.0));
+        if (alpha >= 0.5) zb[x] = static_cast<float>(nearest);
+      }
+    }
+  }
+
+ private:
+  struct Sample {
+    float value = 0;
+    float inv_depth = 0;
+  };
+
+  // Image rectangle holding the cylinder's projection: its bounding box's corners projected, the
+  // whole canvas when a corner is behind the near plane.
+  cv::Rect bounds(cv::Size size) const {
+    const double r = c_.radius_m, h = c_.height_m / 2;
+    double minx = 1e30, miny = 1e30, maxx = -1e30, maxy = -1e30;
+    for (int i = 0; i < 8; ++i) {
+      const Eigen::Vector3d Xo((i & 1) ? r : -r, (i & 2) ? h : -h, (i & 4) ? 2 * r : 0);
+      const Eigen::Vector3d Xc = c_.cMo * Xo;
+      if (Xc.z() < opt_.near_m) return cv::Rect(cv::Point(0, 0), size);
+      const Eigen::Vector3d q = K_ * Xc;
+      minx = std::min(minx, q.x() / q.z());
+      maxx = std::max(maxx, q.x() / q.z());
+      miny = std::min(miny, q.y() / q.z());
+      maxy = std::max(maxy, q.y() / q.z());
+    }
+    const cv::Rect box(cv::Point(static_cast<int>(std::floor(std::max(minx, -1.0))) - 1,
+                                 static_cast<int>(std::floor(std::max(miny, -1.0))) - 1),
+                       cv::Point(static_cast<int>(std::ceil(std::min(maxx, size.width + 1.0))) + 2,
+                                 static_cast<int>(std::ceil(std::min(maxy, size.height + 1.0))) + 2));
+    return box & cv::Rect(cv::Point(0, 0), size);
+  }
+
+  void prepareTextures() {
+    label_pyr_ = pyramidCache().get(c_.label, maxLevelOf(c_.label, opt_.mipmap));
+    if (!c_.side_texture.empty()) side_pyr_ = pyramidCache().get(c_.side_texture, maxLevelOf(c_.side_texture, opt_.mipmap));
+    if (!c_.cap_texture.empty()) cap_pyr_ = pyramidCache().get(c_.cap_texture, maxLevelOf(c_.cap_texture, opt_.mipmap));
+  }
+
+  // Shades the canvas point (x, y); false when the ray misses the cylinder.
+  bool shade(double x, double y, Sample* out) const {
+    const Eigen::Vector3d d = oMc_.R * (Kinv_ * Eigen::Vector3d(x, y, 1));  // object frame, camera z = 1
+    const Eigen::Vector3d& o = oMc_.t;
+    const double r = c_.radius_m, h = c_.height_m / 2;
+    double best = 1e30;
+    int what = 0;  // 1 side, 2 cap
+    if (const auto t = label_.intersect(o, d)) {
+      const double yy = o.y() + *t * d.y();
+      if (std::abs(yy) <= h) {
+        best = *t;
+        what = 1;
+      }
+    }
+    // The cap facing the camera: y = -h seen from y < -h, y = +h from y > h.
+    if (std::abs(o.y()) > h && std::abs(d.y()) > 1e-12) {
+      const double yc = o.y() < 0 ? -h : h;
+      const double t = (yc - o.y()) / d.y();
+      if (t > 0 && t < best) {
+        const Eigen::Vector3d X = o + t * d;
+        if (X.x() * X.x() + (X.z() - r) * (X.z() - r) <= r * r) {
+          best = t;
+          what = 2;
+        }
+      }
+    }
+    if (what == 0) return false;
+    // Camera z of the hit is best (the ray's camera-frame direction has z = 1).
+    if (best < opt_.near_m) return false;
+    const Eigen::Vector3d X = o + best * d;
+    const double dist = best * d.norm();
+    const Eigen::Vector3d n = what == 1 ? Eigen::Vector3d(X.x(), 0, X.z() - r).normalized()
+                                        : Eigen::Vector3d(0, X.y() < 0 ? -1 : 1, 0);
+    const double cos_inc = std::max(0.05, std::abs(n.dot(d.normalized())));
+    // Surface area one pixel covers (m^2): (dist / f)^2 / cos(incidence).
+    const double pixel_m = dist / f_ / std::sqrt(cos_inc);
+    out->inv_depth = static_cast<float>(1.0 / best);
+    if (what == 2) {
+      if (cap_pyr_.empty()) {
+        out->value = static_cast<float>(c_.cap_gray);
+        return true;
+      }
+      const cv::Mat& t = c_.cap_texture;
+      const double u = (X.x() / (2 * r) + 0.5) * t.cols - 0.5, v = ((X.z() - r) / (2 * r) + 0.5) * t.rows - 0.5;
+      const double texel = 2 * r / std::min(t.cols, t.rows);
+      out->value = samplePyramid(cap_pyr_, levelFor(pixel_m / texel, static_cast<int>(cap_pyr_.size()) - 1), u, v);
+      return true;
+    }
+    const double ylo = -c_.label_height_m / 2, yhi = c_.label_height_m / 2;
+    if (X.y() >= ylo && X.y() <= yhi) {
+      if (const auto uv = label_.pixel(X)) {
+        const double texel = std::sqrt(label_.metresPerPixelU() * label_.metresPerPixelV());
+        out->value = samplePyramid(label_pyr_, levelFor(pixel_m / texel, static_cast<int>(label_pyr_.size()) - 1),
+                                   uv->x(), uv->y());
+        return true;
+      }
+    }
+    if (side_pyr_.empty()) {
+      out->value = static_cast<float>(c_.side_gray);
+      return true;
+    }
+    const cv::Mat& t = c_.side_texture;
+    const double theta = std::atan2(X.x(), r - X.z());
+    const double u = (theta / (2 * M_PI) + 0.5) * t.cols - 0.5, v = (X.y() / c_.height_m + 0.5) * t.rows - 0.5;
+    const double texel = std::sqrt(2 * M_PI * r / t.cols * c_.height_m / t.rows);
+    out->value = samplePyramid(side_pyr_, levelFor(pixel_m / texel, static_cast<int>(side_pyr_.size()) - 1), u, v);
+    return true;
+  }
+
+  const TexturedCylinder& c_;
+  const RenderOptions& opt_;
+  Eigen::Matrix3d K_, Kinv_;
+  Pose oMc_;
+  CylinderLabel label_;
+  double f_ = 1;
+  std::vector<cv::Mat> label_pyr_, side_pyr_, cap_pyr_;
+};
+
 }  // namespace
 
 Eigen::Matrix3d textureToImage(const Intrinsics& cam, const TexturedPlane& plane) {
@@ -326,9 +545,16 @@ std::array<Eigen::Vector2d, 4> projectPlaneCorners(const Intrinsics& cam, const 
 
 cv::Mat renderView(const Intrinsics& cam, const std::vector<TexturedPlane>& planes,
                    const cv::Mat& background, const RenderOptions& opt) {
+  return renderView(cam, planes, {}, background, opt);
+}
+
+cv::Mat renderView(const Intrinsics& cam, const std::vector<TexturedPlane>& planes,
+                   const std::vector<TexturedCylinder>& cylinders, const cv::Mat& background,
+                   const RenderOptions& opt) {
   cam.check();
   opt.check();
   for (const auto& p : planes) checkPlane(p);
+  for (const auto& c : cylinders) checkCylinder(c);
 
   std::shared_ptr<const DistortionMap> dmap;
   Eigen::Matrix3d K = cam.K();
@@ -357,13 +583,25 @@ cv::Mat renderView(const Intrinsics& cam, const std::vector<TexturedPlane>& plan
                  bg.cols > canvas_size.width ? cv::INTER_AREA : cv::INTER_LINEAR);
   }
 
-  std::vector<size_t> order(planes.size());
-  std::iota(order.begin(), order.end(), 0);
-  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
-    return planes[a].cMp.t.norm() > planes[b].cMp.t.norm();
-  });
+  // Far to near by the distance of each item's centre (planes: the texture centre; cylinders:
+  // the axis point at the label's centre row), so anti-aliased edges blend over what is behind.
+  struct Item {
+    double distance;
+    size_t index;
+    bool cylinder;
+  };
+  std::vector<Item> order;
+  for (size_t i = 0; i < planes.size(); ++i) order.push_back({planes[i].cMp.t.norm(), i, false});
+  for (size_t i = 0; i < cylinders.size(); ++i)
+    order.push_back({(cylinders[i].cMo * Eigen::Vector3d(0, 0, cylinders[i].radius_m)).norm(), i, true});
+  std::stable_sort(order.begin(), order.end(), [](const Item& a, const Item& b) { return a.distance > b.distance; });
   cv::Mat inv_depth = cv::Mat::zeros(canvas.size(), CV_32F);
-  for (size_t i : order) drawPlane(canvas, inv_depth, K, planes[i], opt);
+  for (const Item& it : order) {
+    if (it.cylinder)
+      CylinderDrawer(cylinders[it.index], K, opt).draw(canvas, inv_depth);
+    else
+      drawPlane(canvas, inv_depth, K, planes[it.index], opt);
+  }
 
   if (!dmap) return canvas;
   cv::Mat out;

@@ -22,6 +22,23 @@ struct TexturedPlane {
   Pose cMp;  ///< plane frame in the camera frame (an object's faces hold oMp here instead)
 };
 
+/// A cylinder with a label wrapped on it (a can, a bottle), in its object frame o
+/// (core/cylinder.h: origin at the label's centre on the surface, y along the axis, z into the
+/// object, the axis the line x = 0, z = r). The side spans y in [-height_m/2, height_m/2]; the caps
+/// are the discs at its two ends.
+struct TexturedCylinder {
+  cv::Mat label;  ///< CV_8UC1, wrapped as core/cylinder.h describes (immutable once rendered)
+  double radius_m = 0, label_width_m = 0, label_height_m = 0, height_m = 0;
+  /// The side where the label does not cover it, wrapped once round the whole side: columns
+  /// from theta = -pi to pi (theta = 0 at the label's centre), rows from y = -height_m/2 to
+  /// height_m/2. Empty: uniform side_gray.
+  cv::Mat side_texture;
+  /// Both caps: the disc inscribed in it, columns along x, rows along z. Empty: cap_gray.
+  cv::Mat cap_texture;
+  int side_gray = 200, cap_gray = 170;
+  Pose cMo;  ///< object frame in the camera frame (metres, radians)
+};
+
 struct RenderOptions {
   bool antialias_edges = true;  ///< alpha-blend a sub-pixel coverage mask at plane edges
   bool mipmap = true;           ///< sample a cv::pyrDown level (chosen per row) so minified textures do not alias
@@ -40,6 +57,12 @@ struct RenderOptions {
 /// obeys Intrinsics::project.
 cv::Mat renderView(const Intrinsics& cam, const std::vector<TexturedPlane>& planes,
                    const cv::Mat& background, const RenderOptions& opt = {});
+/// The same with cylinders among the planes (one depth test for all; a cylinder's silhouette is
+/// anti-aliased by 4 x 4 supersampling, its texture mipmapped like a plane's). Throws
+/// std::invalid_argument on a cylinder with an empty label or non-positive sizes.
+cv::Mat renderView(const Intrinsics& cam, const std::vector<TexturedPlane>& planes,
+                   const std::vector<TexturedCylinder>& cylinders, const cv::Mat& background,
+                   const RenderOptions& opt = {});
 
 /// Homography from level-0 texture pixels to ideal (undistorted) image pixels, x_img ~ H x_tex.
 Eigen::Matrix3d textureToImage(const Intrinsics& cam, const TexturedPlane& plane);
