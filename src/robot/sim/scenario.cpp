@@ -6,6 +6,7 @@
 #include <map>
 #include <set>
 
+#include "core/cylinder.h"
 #include "core/error.h"
 #include "core/image_io.h"
 #include "core/yaml.h"
@@ -92,6 +93,11 @@ class Reader {
   Pose pose(const YAML::Node& node, const std::string& where, const std::string& key) const {
     return prefixed(where, [&] { return f_.pose(node, key); });
   }
+  double positive(const YAML::Node& node, const std::string& where, const std::string& key) const {
+    const double v = number(node, where, key);
+    if (v <= 0) f_.fail(join(where, key), "must be positive");
+    return v;
+  }
   std::vector<double> numbers(const YAML::Node& node, const std::string& where, const std::string& key, int n) const {
     return prefixed(where, [&] { return f_.numbers(node, key, n); });
   }
@@ -144,9 +150,36 @@ std::vector<TexturedPlane> objectBox(const Eigen::Vector3d& size, const std::arr
   return boxFaces(size, Eigen::Vector3d(0, 0, size.z() / 2), tex, {Y, Y, Z, Z, Y, Y});
 }
 
+// A labelled cylinder (shape: cylinder) in its object frame (oMc = identity): the label's
+// geometry checked by the object definitions' rule (core/cylinder.h), named by this object's fields.
+TexturedCylinder readCylinder(Reader& r, const YAML::Node& node, const std::string& where) {
+  TexturedCylinder c;
+  c.radius_m = r.positive(node, where, "radius_m");
+  c.height_m = r.positive(node, where, "height_m");
+  const Eigen::Vector3d label_size = r.positiveSize(node, where, "label_size_m", 2);
+  c.label_width_m = label_size.x();
+  c.label_height_m = label_size.y();
+  c.label = r.texture(node, where, "label");
+  if (node["side_texture"]) c.side_texture = r.texture(node, where, "side_texture");
+  if (node["cap_texture"]) c.cap_texture = r.texture(node, where, "cap_texture");
+  const CylinderLabel label{c.radius_m, c.label_width_m, c.label_height_m, c.label.cols, c.label.rows};
+  try {
+    label.check(r.file().path());
+  } catch (const ConfigError& e) {
+    const std::string field = e.field().rfind("cylinder.", 0) == 0 ? e.field().substr(9) : "label";
+    r.file().fail(Reader::join(where, field), e.problem());
+  }
+  if (c.label_height_m > c.height_m)
+    r.file().fail(Reader::join(where, "label_size_m"),
+                  "label height " + Reader::shortNumber(c.label_height_m) + " m is more than height_m " +
+                      Reader::shortNumber(c.height_m) + " m");
+  return c;
+}
+
 SimObject readObject(Reader& r, const YAML::Node& node, const std::string& where) {
   r.onlyKeys(node, where, {"name", "definition", "target", "shape", "size_m", "texture", "faces",
-                           "side_texture", "pose", "grasp_frame", "mass_kg"});
+                           "side_texture", "pose", "grasp_frame", "mass_kg", "radius_m", "height_m",
+                           "label", "label_size_m", "cap_texture"});
   SimObject o;
   o.name = r.string(node, where, "name");
   o.is_target = r.boolean(node, where, "target", false);
@@ -164,6 +197,14 @@ SimObject readObject(Reader& r, const YAML::Node& node, const std::string& where
   o.mass_kg = r.number(node, where, "mass_kg", kDefaultObjectMassKg);
   if (o.mass_kg <= 0) r.file().fail(Reader::join(where, "mass_kg"), "must be positive");
   const std::string shape = r.string(node, where, "shape");
+  const bool cylinder = shape == "cylinder";
+  if (shape != "plane" && shape != "box" && !cylinder)
+    r.file().fail(Reader::join(where, "shape"), "expected 'cylinder', 'plane' or 'box', got '" + shape + "'");
+  // Fields of a cylinder only, and of a plane or box only.
+  for (const char* key : {"radius_m", "height_m", "label", "label_size_m", "cap_texture"})
+    if (node[key] && !cylinder) r.file().fail(Reader::join(where, key), "not a field of shape '" + shape + "'");
+  for (const char* key : {"size_m", "texture", "faces"})
+    if (node[key] && cylinder) r.file().fail(Reader::join(where, key), "not a field of shape 'cylinder'");
   if (shape == "plane") {
     const Eigen::Vector3d size = r.positiveSize(node, where, "size_m", 2);
     o.faces.push_back({r.texture(node, where, "texture"), size.x(), size.y(), Pose()});
@@ -184,7 +225,13 @@ SimObject readObject(Reader& r, const YAML::Node& node, const std::string& where
     o.faces = objectBox(size, tex);
     o.solids.push_back({Pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0, 0, size.z() / 2)), size / 2});
   } else {
-    r.file().fail(Reader::join(where, "shape"), "expected 'plane' or 'box', got '" + shape + "'");
+    o.cylinders.push_back(readCylinder(r, node, where));
+    const TexturedCylinder& c = o.cylinders.back();
+    // The solid's axis z_s is the object's y; its centre on the axis, level with the label's centre.
+    Eigen::Matrix3d R;
+    R << 1, 0, 0, 0, 0, 1, 0, -1, 0;
+    o.solids.push_back({Pose(R, Eigen::Vector3d(0, 0, c.radius_m)),
+                        Eigen::Vector3d(c.radius_m, c.radius_m, c.height_m / 2), true});
   }
   return o;
 }

@@ -5,7 +5,10 @@
 // Object frames follow the planar-object convention of the object's front face (DEVELOPERS.md):
 // origin at the centre of the front texture, x along its columns, y along its rows (down for an
 // upright object), z into the object (away from a viewer of the front face). A box of size
-// (x, y, z) = (width, height, depth) extends from z = 0 (front face) to z = depth.
+// (x, y, z) = (width, height, depth) extends from z = 0 (front face) to z = depth. A cylinder
+// (shape: cylinder) has its label's frame (core/cylinder.h): origin at the label's centre on the
+// surface, y along the axis (down for an upright can), z into the object, the axis the line
+// x = 0, z = radius; its side spans y in [-height/2, height/2].
 #include <array>
 #include <cstdint>
 #include <string>
@@ -19,10 +22,12 @@
 namespace refgrasp::sim {
 
 /// A solid part of an object, for collisions and grasping: a box (centre and axes oMs in the
-/// object frame, half extents).
+/// object frame, half extents half_m along x_s, y_s, z_s) or a cylinder (centre and axes oMs,
+/// its axis along z_s, half_m = (radius, radius, half height): the box that bounds it).
 struct Solid {
   Pose oMs;
   Eigen::Vector3d half_m = Eigen::Vector3d::Zero();
+  bool cylinder = false;
 };
 
 /// Mass of a scenario object without `mass_kg` (a filled cereal box is about 0.4 kg).
@@ -39,8 +44,12 @@ struct SimObject {
   Pose wMo;                ///< object frame in the world
   Pose oMg;                ///< grasp frame in the object frame
   std::vector<TexturedPlane> faces;  ///< the cMp field of each face holds oMp (face in object frame)
+  /// Labelled cylinders (a can); the cMo field of each holds its frame in the object frame (oMc;
+  /// identity for a scenario cylinder, whose object frame is the label's: core/cylinder.h).
+  std::vector<TexturedCylinder> cylinders;
   /// Solids the robot collides with and grips: a box object's box, a plane 1 mm thick behind its
-  /// face, the table's block, the floor (a slab below z = 0) and the walls (slabs behind them).
+  /// face, a cylinder object's cylinder, the table's block, the floor (a slab below z = 0) and
+  /// the walls (slabs behind them).
   /// None: the object is never touched (it can still be grasped, with zero width).
   std::vector<Solid> solids;
   double mass_kg = kDefaultObjectMassKg;

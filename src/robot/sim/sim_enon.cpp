@@ -26,6 +26,16 @@ constexpr double kSlipAngle = 0.05;
 const char* const kCapsuleNames[] = {"upper_arm", "forearm", "palm", "finger_x+", "finger_x-"};
 constexpr int kFirstFinger = 3;
 
+// Calls f with the solid in the world, as an OrientedBox or an OrientedCylinder.
+template <class F>
+void withShape(const Solid& sd, const Pose& wMo, F&& f) {
+  if (sd.cylinder) {
+    f(OrientedCylinder{wMo * sd.oMs, sd.half_m.x(), sd.half_m.z()});
+  } else {
+    f(OrientedBox{wMo * sd.oMs, sd.half_m});
+  }
+}
+
 uint64_t splitmix64(uint64_t x) {
   x += 0x9E3779B97F4A7C15ull;
   x = (x ^ (x >> 30)) * 0xBF58476D1CE4E5B9ull;
@@ -292,12 +302,12 @@ void SimEnon::finishGripper(Seconds now) {
 double SimEnon::widthAlong(const SimObject& o, const Eigen::Vector3d& u) const {
   if (o.solids.empty()) return 0;
   double lo = 1e300, hi = -1e300;
-  for (const Solid& sd : o.solids) {
-    const OrientedBox box{o.wMo * sd.oMs, sd.half_m};
-    const double c = u.dot(box.wMb.t), h = extentAlong(box, u) / 2;
-    lo = std::min(lo, c - h);
-    hi = std::max(hi, c + h);
-  }
+  for (const Solid& sd : o.solids)
+    withShape(sd, o.wMo, [&](const auto& shape) {
+      const double c = u.dot((o.wMo * sd.oMs).t), h = extentAlong(shape, u) / 2;
+      lo = std::min(lo, c - h);
+      hi = std::max(hi, c + h);
+    });
   return hi - lo;
 }
 
@@ -399,18 +409,18 @@ void SimEnon::visitPairs(const RobotShapes& sh, const double& below, F&& f) cons
   for (size_t i = 0; i < world_.objects.size(); ++i) {
     const SimObject& o = world_.objects[i];
     if (static_cast<int>(i) == held_) continue;
-    for (const Solid& sd : o.solids) {
-      const OrientedBox box{o.wMo * sd.oMs, sd.half_m};
-      for (size_t c = 0; c < sh.capsules.size(); ++c) {
-        if (static_cast<int>(c) >= kFirstFinger && static_cast<int>(i) == finger_exempt_) continue;
-        const Capsule& cap = sh.capsules[c].second;
-        // Broad phase: a lower bound from the capsule's bounding sphere.
-        const double bound = 0.5 * (cap.b - cap.a).norm() + cap.radius_m;
-        if (signedDistance(box, Eigen::Vector3d(0.5 * (cap.a + cap.b))) - bound >= below) continue;
-        f(sh.capsules[c].first, o, signedDistance(box, cap));
-      }
-      if (o.kind != ObjectKind::kFloor) f("base", o, signedDistance(box, sh.base));
-    }
+    for (const Solid& sd : o.solids)
+      withShape(sd, o.wMo, [&](const auto& solid) {
+        for (size_t c = 0; c < sh.capsules.size(); ++c) {
+          if (static_cast<int>(c) >= kFirstFinger && static_cast<int>(i) == finger_exempt_) continue;
+          const Capsule& cap = sh.capsules[c].second;
+          // Broad phase: a lower bound from the capsule's bounding sphere.
+          const double bound = 0.5 * (cap.b - cap.a).norm() + cap.radius_m;
+          if (signedDistance(solid, Eigen::Vector3d(0.5 * (cap.a + cap.b))) - bound >= below) continue;
+          f(sh.capsules[c].first, o, signedDistance(solid, cap));
+        }
+        if (o.kind != ObjectKind::kFloor) f("base", o, signedDistance(solid, sh.base));
+      });
   }
 }
 

@@ -19,6 +19,23 @@ std::vector<TexturedPlane> worldPlanes(const World& world, const Pose& wMc) {
   return planes;
 }
 
+std::vector<TexturedCylinder> worldCylinders(const World& world, const Pose& wMc) {
+  const Pose cMw = wMc.inverse();
+  std::vector<TexturedCylinder> cylinders;
+  for (const SimObject& o : world.objects) {
+    const Pose cMo = cMw * o.wMo;
+    for (TexturedCylinder c : o.cylinders) {
+      c.cMo = cMo * c.cMo;
+      cylinders.push_back(std::move(c));
+    }
+  }
+  return cylinders;
+}
+
+cv::Mat renderWorld(const Intrinsics& cam, const World& world, const Pose& wMc, const RenderOptions& opt) {
+  return renderView(cam, worldPlanes(world, wMc), worldCylinders(world, wMc), world.background, opt);
+}
+
 namespace {
 
 // cMo of every object; render and poses share it so that their poses are the same bits.
@@ -56,7 +73,7 @@ cv::Mat SyntheticStereoCamera::renderEye(const Intrinsics& cam, const World& wor
   }
   if (!std::isfinite(depth)) depth = 2.0;
 
-  cv::Mat img = renderView(cam, worldPlanes(world, wMc), world.background, render_);
+  cv::Mat img = renderWorld(cam, world, wMc, render_);
 
   // Image velocity at the principal point (x = y = 0 of the point-feature interaction matrix):
   // xdot = -vx/Z - wy, ydot = -vy/Z + wx.

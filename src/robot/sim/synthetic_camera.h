@@ -23,6 +23,10 @@ struct SyntheticFrame {
 
 /// Planes of every object face as seen from camera pose wMc (cMp = cMw * wMo * oMp).
 std::vector<TexturedPlane> worldPlanes(const World& world, const Pose& wMc);
+/// Cylinders of every object as seen from camera pose wMc (cMo = cMw * wMo * oMc).
+std::vector<TexturedCylinder> worldCylinders(const World& world, const Pose& wMc);
+/// The world as seen by `cam` at wMc: renderView of its planes and cylinders over its background.
+cv::Mat renderWorld(const Intrinsics& cam, const World& world, const Pose& wMc, const RenderOptions& opt = {});
 
 class SyntheticStereoCamera {
  public:
