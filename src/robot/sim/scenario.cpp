@@ -32,6 +32,12 @@ std::vector<TexturedPlane> boxFaces(const Eigen::Vector3d& size_m, const Eigen::
   return faces;
 }
 
+Solid cylinderSolid(double radius_m, double height_m) {
+  Eigen::Matrix3d R;  // x_s = x_o, y_s = -z_o, z_s = y_o
+  R << 1, 0, 0, 0, 0, 1, 0, -1, 0;
+  return {Pose(R, Eigen::Vector3d(0, 0, radius_m)), Eigen::Vector3d(radius_m, radius_m, height_m / 2), true};
+}
+
 namespace {
 
 namespace fs = std::filesystem;
@@ -226,12 +232,7 @@ SimObject readObject(Reader& r, const YAML::Node& node, const std::string& where
     o.solids.push_back({Pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0, 0, size.z() / 2)), size / 2});
   } else {
     o.cylinders.push_back(readCylinder(r, node, where));
-    const TexturedCylinder& c = o.cylinders.back();
-    // The solid's axis z_s is the object's y; its centre on the axis, level with the label's centre.
-    Eigen::Matrix3d R;
-    R << 1, 0, 0, 0, 0, 1, 0, -1, 0;
-    o.solids.push_back({Pose(R, Eigen::Vector3d(0, 0, c.radius_m)),
-                        Eigen::Vector3d(c.radius_m, c.radius_m, c.height_m / 2), true});
+    o.solids.push_back(cylinderSolid(o.cylinders.back().radius_m, o.cylinders.back().height_m));
   }
   return o;
 }

@@ -30,6 +30,10 @@ struct Solid {
   bool cylinder = false;
 };
 
+/// The solid of a scenario cylinder in its object frame (core/cylinder.h): axis z_s along y_o
+/// through (0, 0, radius_m), spanning y_o in [-height_m/2, height_m/2].
+Solid cylinderSolid(double radius_m, double height_m);
+
 /// Mass of a scenario object without `mass_kg` (a filled cereal box is about 0.4 kg).
 constexpr double kDefaultObjectMassKg = 0.3;
 
