@@ -17,8 +17,10 @@
 // held object (it moves with the hand and is not checked against the world either), and the
 // fingers against the object they close on (from the close command until the gripper is fully
 // open again: the item whose grasp frame is nearest the gripper frame e, within open_width_m,
-// when the close command takes effect). Distances are exact (capsule-box by a bracketed convex
-// 1-D minimisation, cylinder-box in closed form for boxes with a vertical axis). They are checked
+// when the close command takes effect). The solids are boxes and cylinders (scenario shape:
+// cylinder). Distances are exact (capsule-box and capsule-cylinder by a bracketed convex 1-D
+// minimisation, base-box in closed form for boxes with a vertical axis, base-cylinder for upright
+// cylinders; a tilted solid is bounded by its axis-aligned box for the base). They are checked
 // at the start (activate(), setJointPositions()) and along every integration step at sub-steps
 // over which no point of the robot moves more than 2 mm (bounded from the base and joint speeds),
 // so nothing tunnels and a reported depth is at most ~2 mm more than the first contact. A
@@ -32,7 +34,8 @@
 // open_width_m to 0; it opens in open_time_s). When it has closed it holds the item (not a
 // fixture: table, floor, walls) whose grasp frame (wMo * oMg) is nearest the gripper frame e among
 // those (1) within grasp_tolerance_m and grasp_tolerance_rad of e and (2) whose width along x_e
-// (the closing direction: the extent of its solids) is at most open_width_m; else it is closed
+// (the closing direction: the extent of its solids, a cylinder's diameter when x_e crosses its
+// axis) is at most open_width_m; the fingers then stop that width apart. Else it is closed
 // on nothing (kClosedEmpty). A held object moves with the hand (wMo = wMe * eMo); opening releases
 // it where it is (no gravity). An object heavier than gripper.max_payload_kg (SimObject::mass_kg,
 // scenario field mass_kg) slips: as soon as the hand has moved its grasp frame more than 5 mm or

@@ -9,8 +9,10 @@
 
 #include "robot/sim/synthetic_scene.h"
 #include "core/error.h"
+#include "core/image_io.h"
 #include "robot/sim/render.h"
 #include "robot/sim/scenario.h"
+#include "robot/sim/synthetic_camera.h"
 
 namespace refgrasp::sim {
 namespace {
@@ -49,8 +51,9 @@ TEST(Scenario, EveryShippedScenarioLoads) {
     const Scenario s = loadScenario(e.path().string());
     int targets = 0;
     for (const auto& o : s.world.objects) {
-      EXPECT_FALSE(o.faces.empty()) << o.name;
+      EXPECT_FALSE(o.faces.empty() && o.cylinders.empty()) << o.name;
       for (const auto& f : o.faces) EXPECT_EQ(f.texture.type(), CV_8UC1) << o.name;
+      for (const auto& c : o.cylinders) EXPECT_EQ(c.label.type(), CV_8UC1) << o.name;
       if (!o.is_target) continue;
       ++targets;
       EXPECT_TRUE(fs::is_regular_file(o.definition)) << o.definition;
@@ -85,6 +88,104 @@ TEST(Scenario, ShippedScenariosPlaceTheTargetAsDocumented) {
   EXPECT_DOUBLE_EQ(f.faults.frame_drop_probability, 0.1);
   EXPECT_DOUBLE_EQ(f.faults.command_latency_s, 0.1);
   EXPECT_DOUBLE_EQ(f.faults.frame_delay_s, 0.05);
+}
+
+// can_table: the can stands upright on the table in view of the start, its grasp frame on its
+// axis, approaching horizontally and closing across the diameter.
+TEST(Scenario, TheCanStandsOnTheTableWithItsSideGraspFrame) {
+  const Intrinsics bb2 = loadCameraFile(std::string(REFGRASP_SOURCE_DIR) + "/config/cameras/bb2_left.yaml");
+  const Scenario s = loadScenario(kScenarios + "can_table.yaml");
+  const SimObject& can = target(s);
+  ASSERT_EQ(can.cylinders.size(), 1u);
+  ASSERT_EQ(can.solids.size(), 1u);
+  EXPECT_TRUE(can.faces.empty());
+  const TexturedCylinder& c = can.cylinders[0];
+  EXPECT_EQ(c.radius_m, 0.033);
+  EXPECT_EQ(c.height_m, 0.122);
+  EXPECT_EQ(c.label_width_m, 0.2073);
+  EXPECT_EQ(c.label_height_m, 0.115);
+  EXPECT_EQ(c.label.size(), cv::Size(512, 284));
+  EXPECT_TRUE(c.side_texture.empty());
+  EXPECT_NEAR((c.cMo.t).norm() + c.cMo.rotationVector().norm(), 0, 0);  // oMc = identity
+  // The solid: a cylinder about a vertical axis through (0, y, r), spanning the side.
+  const Solid& sd = can.solids[0];
+  EXPECT_TRUE(sd.cylinder);
+  const Pose wMs = can.wMo * sd.oMs;
+  EXPECT_NEAR(std::abs(wMs.R(2, 2)), 1, 1e-4);
+  EXPECT_NEAR((sd.half_m - Eigen::Vector3d(0.033, 0.033, 0.061)).norm(), 0, 1e-15);
+  EXPECT_NEAR((sd.oMs.t - Eigen::Vector3d(0, 0, 0.033)).norm(), 0, 1e-15);
+  // Its bottom on the table top.
+  const SimObject* table = nullptr;
+  for (const auto& o : s.world.objects)
+    if (o.name == "table") table = &o;
+  ASSERT_NE(table, nullptr);
+  EXPECT_NEAR(wMs.t.z() - sd.half_m.z(), table->wMo.t.z(), 1e-3);
+  // The grasp frame: on the axis, z_g and x_g horizontal.
+  const Pose wMg = can.wMo * can.oMg;
+  EXPECT_NEAR((wMg.t - wMs.t).head<2>().norm(), 0, 1e-3);
+  EXPECT_NEAR(wMg.R.col(2).z(), 0, 1e-4);
+  EXPECT_NEAR(wMg.R.col(0).z(), 0, 1e-4);
+  EXPECT_GT(wMg.t.z(), wMs.t.z());  // above the middle, below the top
+  EXPECT_LT(wMg.t.z(), wMs.t.z() + sd.half_m.z());
+  EXPECT_TRUE(inView(bb2, startCamera(s), can.wMo.t));
+  // A distractor cylinder with side and cap textures.
+  int cylinders = 0;
+  for (const auto& o : s.world.objects)
+    if (!o.is_target && !o.cylinders.empty()) {
+      ++cylinders;
+      EXPECT_FALSE(o.cylinders[0].side_texture.empty());
+      EXPECT_FALSE(o.cylinders[0].cap_texture.empty());
+    }
+  EXPECT_EQ(cylinders, 1);
+}
+
+// The can of can_table rendered by the world's renderer (renderWorld, and the stereo camera
+// without degradations) is the renderer's own drawing of that cylinder at cMo = cMw wMo.
+TEST(Scenario, ACanRendersAtItsWorldPoseAsTheRendererDrawsIt) {
+  const Scenario s = loadScenario(kScenarios + "can_table.yaml");
+  const SimObject& can = target(s);
+  TexturedCylinder direct;
+  direct.label = readImage(kMedia + "labels/soda_can_label.png", ImageMode::kGray).image;
+  direct.radius_m = 0.033;
+  direct.label_width_m = 0.2073;
+  direct.label_height_m = 0.115;
+  direct.height_m = 0.122;
+  const Intrinsics cam = testing::sceneCamera();
+  // Cameras 0.4 m from the axis, at the can's middle, looking at it from the front and 70 deg
+  // round to its left, and 0.3 m above it looking down on its cap.
+  const Eigen::Vector3d axis = (can.wMo * Eigen::Vector3d(0, 0, 0.033));
+  std::vector<Pose> views;
+  for (const double a : {0.0, 70.0 * M_PI / 180}) {
+    const Eigen::Vector3d z(std::cos(a), std::sin(a), 0);  // viewing direction, horizontal
+    Eigen::Matrix3d R;
+    R << z.cross(Eigen::Vector3d::UnitZ()), -Eigen::Vector3d::UnitZ(), z;
+    views.emplace_back(R, axis - 0.4 * z);
+  }
+  Eigen::Matrix3d down;
+  down << 0, -1, 0, -1, 0, 0, 0, 0, -1;
+  views.emplace_back(down, axis + Eigen::Vector3d(0, 0, 0.3));
+  World alone;
+  alone.objects = {can};
+  StereoRig rig;
+  rig.left = rig.right = cam;
+  SyntheticStereoCamera stereo(rig, Degradation{}, 1);
+  for (size_t i = 0; i < views.size(); ++i) {
+    SCOPED_TRACE(i);
+    direct.cMo = views[i].inverse() * can.wMo;
+    const cv::Mat expected = renderView(cam, {}, {direct}, cv::Mat());
+    const cv::Mat world = renderWorld(cam, alone, views[i]);
+    EXPECT_EQ(cv::norm(world, expected, cv::NORM_INF), 0);
+    EXPECT_EQ(cv::norm(stereo.render(alone, views[i], Twist(), 0).left, expected, cv::NORM_INF), 0);
+    // The can fills a good part of the view (not a blank image compared with a blank image).
+    cv::Mat drawn;
+    cv::compare(expected, RenderOptions().background_gray, drawn, cv::CMP_NE);
+    EXPECT_GT(cv::countNonZero(drawn), 12000);
+  }
+  // In the whole world, the can hides what is behind it: the same pixels around its centre.
+  direct.cMo = views[0].inverse() * can.wMo;
+  const cv::Mat expected = renderView(cam, {}, {direct}, cv::Mat());
+  const cv::Rect centre(cam.width / 2 - 20, cam.height / 2 - 20, 40, 40);
+  EXPECT_EQ(cv::norm(renderWorld(cam, s.world, views[0])(centre), expected(centre), cv::NORM_INF), 0);
 }
 
 // Each face of a box seen from outside along its outward normal shows its own texture; seen from
@@ -249,6 +350,75 @@ TEST_F(BadScenario, MissingTextureAndDefinition) {
   expectError(replace(good(), "config/objects/cereal_box.yaml", "config/objects/nope.yaml"),
               "objects[0].definition", "file not found");
   expectError(replace(good(), "    definition: ", "    # "), "objects[0].definition", "target needs");
+}
+
+// good() with its box replaced by a can: shape: cylinder and its fields.
+std::string goodCan(const std::string& good) {
+  const size_t start = good.find("    shape: box\n"), end = good.find("    pose: {translation: [1.7");
+  return good.substr(0, start) +
+         "    shape: cylinder\n"
+         "    radius_m: 0.033\n"
+         "    height_m: 0.122\n"
+         "    label: " + kMedia + "labels/soda_can_label.png\n"
+         "    label_size_m: [0.2073, 0.115]\n"
+         "    side_texture: " + kMedia + "boxes/box_side_a.png\n"
+         "    cap_texture: " + kMedia + "boxes/box_top.png\n" +
+         good.substr(end);
+}
+
+TEST_F(BadScenario, ACylinderLoadsWithItsFields) {
+  const Scenario s = loadScenario(write(goodCan(good())));
+  const SimObject& o = s.world.objects[0];
+  ASSERT_EQ(o.cylinders.size(), 1u);
+  EXPECT_TRUE(o.faces.empty());
+  EXPECT_EQ(o.cylinders[0].radius_m, 0.033);
+  EXPECT_EQ(o.cylinders[0].height_m, 0.122);
+  EXPECT_EQ(o.cylinders[0].label_width_m, 0.2073);
+  EXPECT_EQ(o.cylinders[0].label_height_m, 0.115);
+  EXPECT_EQ(o.cylinders[0].side_texture.size(), cv::Size(400, 300));
+  EXPECT_EQ(o.cylinders[0].cap_texture.size(), cv::Size(400, 400));
+  ASSERT_EQ(o.solids.size(), 1u);
+  EXPECT_TRUE(o.solids[0].cylinder);
+  // The solid's axis z_s along the object's y, through (0, 0, r).
+  EXPECT_NEAR((o.solids[0].oMs.R.col(2) - Eigen::Vector3d::UnitY()).norm(), 0, 1e-15);
+  EXPECT_NEAR((o.solids[0].oMs.t - Eigen::Vector3d(0, 0, 0.033)).norm(), 0, 1e-15);
+  // Side and cap textures are optional; a label all the way round (+1 %) is allowed.
+  const std::string bare = replace(replace(goodCan(good()), "    side_texture: " + kMedia + "boxes/box_side_a.png\n", ""),
+                                   "    cap_texture: " + kMedia + "boxes/box_top.png\n", "");
+  EXPECT_TRUE(loadScenario(write(bare)).world.objects[0].cylinders[0].side_texture.empty());
+  EXPECT_NO_THROW(loadScenario(write(replace(bare, "[0.2073, 0.115]", "[0.2094, 0.115]"))));
+}
+
+TEST_F(BadScenario, CylinderFields) {
+  const std::string can = goodCan(good());
+  expectError(replace(can, "radius_m: 0.033", "radius_m: 0"), "objects[0].radius_m", "must be positive");
+  expectError(replace(can, "radius_m: 0.033", "radius_m: -0.03"), "objects[0].radius_m", "must be positive");
+  expectError(replace(can, "    radius_m: 0.033\n", ""), "objects[0].radius_m", "missing");
+  expectError(replace(can, "height_m: 0.122", "height_m: 0"), "objects[0].height_m", "must be positive");
+  expectError(replace(can, "height_m: 0.122", "height_m: tall"), "objects[0].height_m", "expected a number");
+  expectError(replace(can, "height_m: 0.122", "height_m: .nan"), "objects[0].height_m", "finite");
+  expectError(replace(can, "[0.2073, 0.115]", "[0.2073, -0.115]"), "objects[0].label_size_m", "positive");
+  expectError(replace(can, "[0.2073, 0.115]", "[0.2073]"), "objects[0].label_size_m", "expected 2 numbers");
+  // Wider than the circumference 2 pi r (+1 %), taller than the side.
+  expectError(replace(can, "[0.2073, 0.115]", "[0.2100, 0.115]"), "objects[0].label_size_m", "circumference");
+  expectError(replace(can, "[0.2073, 0.115]", "[0.2073, 0.13]"), "objects[0].label_size_m", "more than height_m");
+  // Files.
+  expectError(replace(can, "labels/soda_can_label.png", "labels/nope.png"), "objects[0].label", "texture file not found");
+  expectError(replace(can, "labels/soda_can_label.png", "README.md"), "objects[0].label", "cannot read image");
+  expectError(replace(can, "    label: ", "    # "), "objects[0].label", "missing");
+  expectError(replace(can, "boxes/box_side_a.png", "boxes/nope.png"), "objects[0].side_texture", "not found");
+  expectError(replace(can, "boxes/box_top.png", "boxes/nope.png"), "objects[0].cap_texture", "not found");
+  // Fields of other shapes, and a cylinder's fields on a box.
+  expectError(replace(can, "    shape: cylinder\n", "    shape: cylinder\n    size_m: [0.1, 0.1, 0.1]\n"),
+              "objects[0].size_m", "not a field of shape 'cylinder'");
+  expectError(replace(can, "    shape: cylinder\n", "    shape: cylinder\n    faces: {front: x.png}\n"),
+              "objects[0].faces", "not a field of shape 'cylinder'");
+  expectError(replace(good(), "    shape: box\n", "    shape: box\n    radius_m: 0.05\n"), "objects[0].radius_m",
+              "not a field of shape 'box'");
+  expectError(replace(good(), "    shape: box\n", "    shape: box\n    label: x.png\n"), "objects[0].label",
+              "not a field of shape 'box'");
+  expectError(replace(can, "    shape: cylinder\n", "    shape: cylinder\n    radius: 0.05\n"), "objects[0].radius",
+              "did you mean");
 }
 
 TEST_F(BadScenario, DuplicateNames) {

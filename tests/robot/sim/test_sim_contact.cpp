@@ -130,6 +130,20 @@ bool hasContact(const SimEnon& sim, const std::string& link, const std::string& 
   return false;
 }
 
+// The arm at q in a world of `item` alone; the gripper closes where it is (0.6 s > close_time_s).
+std::unique_ptr<testing_util::SimRig> closeOn(const EnonModel& m, const SimObject& item, const Eigen::VectorXd& q) {
+  Scenario sc = bare();
+  sc.world.objects.push_back(item);
+  auto r = std::make_unique<testing_util::SimRig>(sc, m);
+  r->sim->setJointPositions(q);
+  EXPECT_FALSE(r->sim->collided()) << r->sim->lastError();
+  r->run(30, [&](double tt) {
+    if (tt == 0) r->robot->gripper().close();
+  });
+  EXPECT_FALSE(r->sim->collided()) << r->sim->lastError();
+  return r;
+}
+
 }  // namespace
 
 TEST(SimContact, ArmLoweredOntoATableStopsWithTheForearmNamed) {
@@ -254,7 +268,7 @@ TEST(SimContact, BaseDrivenIntoTheTableStops) {
 }
 
 TEST(SimContact, ShippedScenariosStartWithoutContact) {
-  for (const char* name : {"table_single", "table_clutter", "faults"}) {
+  for (const char* name : {"table_single", "table_clutter", "faults", "can_table"}) {
     const Scenario sc =
         sim::loadScenario(std::string(REFGRASP_SOURCE_DIR) + "/config/scenarios/" + name + ".yaml");
     testing_util::SimRig r(sc);
@@ -412,21 +426,14 @@ TEST(SimContact, AnItemWiderThanTheOpeningIsNotHeld) {
   // the item does not fit: closed on nothing. The same item with a 0.25 m crossbar is held.
   const EnonModel m = testing_util::enonModel();
   for (const double bar : {0.40, 0.25}) {
-    Scenario sc = bare();
     const Eigen::VectorXd q = armForward(m);
     const Pose wMe = ArmKinematics(m.arm).forward(q);
     SimObject t = boxItem("tee", facingRobot(wMe.t - Eigen::Vector3d(0.02, 0, 0)), {0.06, 0.06, 0.04});
     // Crossbar: 0.08 m past the stem's front face (0.06 beyond the fingertips), along x_o.
     t.solids.push_back({Pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0, 0, 0.12)),
                         Eigen::Vector3d(bar / 2, 0.03, 0.02)});
-    sc.world.objects.push_back(t);
-    testing_util::SimRig r(sc, m);
-    r.sim->setJointPositions(q);
-    ASSERT_FALSE(r.sim->collided()) << r.sim->lastError();
-    r.run(30, [&](double tt) {
-      if (tt == 0) r.robot->gripper().close();
-    });
-    EXPECT_FALSE(r.sim->collided()) << r.sim->lastError();
+    const auto rig = closeOn(m, t, q);
+    testing_util::SimRig& r = *rig;
     EXPECT_LT(r.sim->graspError(0)->position_m, m.gripper.grasp_tolerance_m);
     EXPECT_EQ(r.robot->gripper().phase(), bar > m.gripper.open_width_m ? GripperPhase::kClosedEmpty
                                                                        : GripperPhase::kHolding)
@@ -499,5 +506,145 @@ TEST(SimContact, FramesWithoutImagesCarryTheSameTruthAndStamps) {
     EXPECT_NE(std::string(e.what()).find("settings.yaml: render: expected true or false, got 'no'"),
               std::string::npos)
         << e.what();
+  }
+}
+
+namespace {
+
+// An upright can in code (scenario cylinder convention: y_o down the axis, z_o = +x_w towards
+// the axis) with its axis at `axis`, its grasp frame on the axis (identity rotation: z_g = +x_w,
+// x_g = -y_w across the diameter).
+SimObject canItem(const std::string& name, const Eigen::Vector3d& axis, double radius, double height) {
+  SimObject o;
+  o.name = name;
+  o.wMo = facingRobot(axis - Eigen::Vector3d(radius, 0, 0));
+  o.oMg = Pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0, 0, radius));
+  o.solids.push_back(sim::cylinderSolid(radius, height));
+  return o;
+}
+
+}  // namespace
+
+TEST(SimContact, AFingerDrivenIntoACanStopsOnItsTip) {
+  // A can straight ahead of finger_x+ (x_e = -y_w: the finger is 0.152 m to the right of e), its
+  // side 0.15 m from the fingertip: only that finger touches, when the base has moved the gap.
+  const EnonModel m = testing_util::enonModel();
+  const Eigen::VectorXd q = armForward(m);
+  const Pose wMe = ArmKinematics(m.arm).forward(q);
+  const robot::GripperModel& g = m.gripper;
+  const double finger_y = -(g.open_width_m / 2 + g.finger_radius_m), tip = g.finger_length_m - g.palm_offset_m;
+  const double gap = 0.15;
+  Scenario sc = bare();
+  sc.world.objects.push_back(canItem(
+      "can", wMe.t + Eigen::Vector3d(tip + g.finger_radius_m + gap + 0.033, finger_y, 0), 0.033, 0.122));
+  testing_util::SimRig r(sc, m);
+  r.sim->setJointPositions(q);
+  ASSERT_FALSE(r.sim->collided()) << r.sim->lastError();
+  const sim::Proximity near = r.sim->nearest();
+  EXPECT_NEAR(near.distance_m, gap, 1e-9);
+  EXPECT_EQ(near.link, "finger_x+");
+  EXPECT_EQ(near.object, "can");
+  const double t = driveUntilError(r, 0.3);
+  ASSERT_GT(t, 0) << "no collision";
+  EXPECT_NEAR(r.sim->trueBasePose().x_m, gap, 0.0021);
+  ASSERT_EQ(r.sim->collisions().size(), 1u);
+  EXPECT_EQ(r.sim->collisions().front().link, "finger_x+");
+  EXPECT_EQ(r.sim->collisions().front().object, "can");
+  EXPECT_LE(r.sim->collisions().front().depth_m, 0.002 + 1e-9);
+  EXPECT_NE(r.sim->lastError().find(": finger_x+ with can ("), std::string::npos) << r.sim->lastError();
+  expectStoppedForGood(r, t);
+}
+
+TEST(SimContact, TheForearmLoweredOntoALyingCanStops) {
+  // A can lying across the stretched arm's forearm (axis along y_w), 5 cm below it, under the
+  // forearm's middle: lowering the arm about the shoulder, the forearm touches it first.
+  const EnonModel m = testing_util::enonModel();
+  const Eigen::VectorXd q = armForward(m);
+  const std::vector<Pose> f = ArmKinematics(m.arm).frames(q);
+  const Eigen::Vector3d mid = 0.5 * (f[static_cast<size_t>(m.arm.forearm.from_frame)].t +
+                                     f[static_cast<size_t>(m.arm.forearm.to_frame)].t);
+  Scenario sc = bare();
+  SimObject can;
+  can.name = "can";
+  can.wMo = Pose(Eigen::Matrix3d::Identity(), mid - Eigen::Vector3d(0, 0, m.arm.forearm.radius_m + 0.05 + 0.033));
+  can.solids.push_back({Pose::fromRotationVector(Eigen::Vector3d(M_PI / 2, 0, 0), Eigen::Vector3d::Zero()),
+                        Eigen::Vector3d(0.033, 0.033, 0.061), true});
+  sc.world.objects.push_back(can);
+  testing_util::SimRig r(sc, m);
+  r.sim->setJointPositions(q);
+  ASSERT_FALSE(r.sim->collided()) << r.sim->lastError();
+  EXPECT_NEAR(r.sim->nearest().distance_m, 0.05, 1e-6);
+  EXPECT_EQ(r.sim->nearest().link, "forearm");
+  Eigen::VectorXd down = Eigen::VectorXd::Zero(5);
+  down[0] = -0.3;
+  const double t = runUntilError(r, 100, [&](double) { r.robot->arm().setJointVelocity(down); });
+  ASSERT_GT(t, 0) << "no collision";
+  ASSERT_FALSE(r.sim->collisions().empty());
+  EXPECT_EQ(r.sim->collisions().front().link, "forearm");
+  EXPECT_EQ(r.sim->collisions().front().object, "can");
+  EXPECT_LE(r.sim->collisions().front().depth_m, 0.002 + 1e-9);
+  expectStoppedForGood(r, t);
+}
+
+TEST(SimContact, TheBaseDrivenIntoABinStops) {
+  // A bin (a cylinder 0.15 m in radius, 0.5 m high) on the floor 1 m ahead: the base body (radius
+  // 0.25 m) touches it when its centre is 0.40 m from the bin's axis.
+  const EnonModel m = testing_util::enonModel();
+  Scenario sc = bare();
+  SimObject bin = canItem("bin", Eigen::Vector3d(1.0, 0, 0.25), 0.15, 0.5);
+  sc.world.objects.push_back(bin);
+  testing_util::SimRig r(sc, m);
+  EXPECT_NEAR(r.sim->nearest().distance_m, 1.0 - 0.15 - m.base.body_radius_m, 1e-12);
+  const double t = driveUntilError(r, 0.3);
+  ASSERT_GT(t, 0) << "no collision";
+  EXPECT_NEAR(r.sim->trueBasePose().x_m, 1.0 - 0.15 - m.base.body_radius_m, 0.0021);
+  ASSERT_EQ(r.sim->collisions().size(), 1u);
+  EXPECT_EQ(r.sim->collisions().front().link, "base");
+  EXPECT_EQ(r.sim->collisions().front().object, "bin");
+  expectStoppedForGood(r, t);
+}
+
+TEST(SimContact, ASideGraspOfACanHoldsItAcrossItsDiameter) {
+  // The stretched arm's gripper frame on the can's grasp frame (on its axis): closing, the fingers
+  // stop on its sides, 2r apart, and it is held; its grasp frame 1.1 tolerances to the side: not.
+  const EnonModel m = testing_util::enonModel();
+  const Eigen::VectorXd q = armForward(m);
+  const Pose wMe = ArmKinematics(m.arm).forward(q);
+  for (const double side : {0.0, 1.1 * m.gripper.grasp_tolerance_m}) {
+    const auto rig = closeOn(m, canItem("can", wMe.t + Eigen::Vector3d(0, side, 0), 0.033, 0.122), q);
+    testing_util::SimRig& r = *rig;
+    EXPECT_NEAR(r.sim->graspError(0)->position_m, side, 1e-9);
+    if (side == 0) {
+      EXPECT_EQ(r.robot->gripper().phase(), GripperPhase::kHolding);
+      EXPECT_EQ(r.robot->state().held_object, "can");
+      EXPECT_NEAR(r.sim->fingerGap(), 0.066, 1e-12);
+    } else {
+      EXPECT_EQ(r.robot->gripper().phase(), GripperPhase::kClosedEmpty);
+      EXPECT_EQ(r.sim->fingerGap(), 0);
+    }
+  }
+}
+
+TEST(SimContact, ABottleWiderThanTheOpeningIsNotHeld) {
+  // A bottle gripped by its neck (radius 0.015 m, between the fingers) whose body, 6 cm below the
+  // fingers, is 0.30 m across (> the 0.28 m opening): its width across the fingers does not fit,
+  // closed on nothing. The same bottle 0.24 m across is held, the fingers stopped 0.24 m apart.
+  const EnonModel m = testing_util::enonModel();
+  const Eigen::VectorXd q = armForward(m);
+  const Pose wMe = ArmKinematics(m.arm).forward(q);
+  for (const double body : {0.30, 0.24}) {
+    SimObject bottle = canItem("bottle", wMe.t, 0.015, 0.10);
+    sim::Solid b = sim::cylinderSolid(body / 2, 0.20);
+    b.oMs.t = Eigen::Vector3d(0, 0.06 + 0.10, 0.015);  // on the neck's axis, its top 0.06 below e
+    bottle.solids.push_back(b);
+    const auto rig = closeOn(m, bottle, q);
+    testing_util::SimRig& r = *rig;
+    EXPECT_NEAR(r.sim->graspError(0)->position_m, 0, 1e-9);
+    if (body > m.gripper.open_width_m) {
+      EXPECT_EQ(r.robot->gripper().phase(), GripperPhase::kClosedEmpty) << body;
+    } else {
+      EXPECT_EQ(r.robot->gripper().phase(), GripperPhase::kHolding) << body;
+      EXPECT_NEAR(r.sim->fingerGap(), body, 1e-12);
+    }
   }
 }
