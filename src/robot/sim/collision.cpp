@@ -137,16 +137,21 @@ double signedDistance(const OrientedCylinder& c, const Capsule& cap) {
 }
 
 double signedDistance(const OrientedCylinder& c, const VerticalCylinder& v) {
+  // Two prisms over discs: an upright cylinder about c's centre of this radius and half height.
+  const auto upright = [&](double radius_m, double half_height_m) {
+    const double horizontal = (v.centre - c.wMc.t.head<2>()).norm() - radius_m - v.radius_m;
+    return prismDistance(horizontal, c.wMc.t.z() - half_height_m, c.wMc.t.z() + half_height_m, v);
+  };
   const Eigen::Vector3d axis = c.wMc.R.col(2);
-  if (std::abs(axis.z()) <= 1 - 1e-9) {
-    // Tilted: its world-axis-aligned bounding box.
-    Eigen::Vector3d half;
-    for (int k = 0; k < 3; ++k)
-      half[k] = extentAlong(c, Eigen::Vector3d::Unit(k)) / 2;
-    return signedDistance(OrientedBox{Pose(Eigen::Matrix3d::Identity(), c.wMc.t), half}, v);
-  }
-  const double horizontal = (v.centre - c.wMc.t.head<2>()).norm() - c.radius_m - v.radius_m;
-  return prismDistance(horizontal, c.wMc.t.z() - c.half_height_m, c.wMc.t.z() + c.half_height_m, v);
+  if (std::abs(axis.z()) > 1 - 1e-9) return upright(c.radius_m, c.half_height_m);
+  // Tilted: two solids that contain it, its world-axis-aligned bounding box and the upright
+  // cylinder about its centre that bounds it; each is at most as far as c, so the larger of
+  // their distances is too (the cylinder is the tighter one when c is nearly upright).
+  Eigen::Vector3d half;
+  for (int k = 0; k < 3; ++k) half[k] = extentAlong(c, Eigen::Vector3d::Unit(k)) / 2;
+  const double sideways = axis.head<2>().norm();
+  return std::max(signedDistance(OrientedBox{Pose(Eigen::Matrix3d::Identity(), c.wMc.t), half}, v),
+                  upright(c.radius_m + c.half_height_m * sideways, half.z()));
 }
 
 double extentAlong(const OrientedCylinder& c, const Eigen::Vector3d& u) {

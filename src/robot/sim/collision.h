@@ -76,8 +76,9 @@ double signedDistance(const OrientedCylinder& c, const Capsule& cap);
 
 /// Vertical cylinder to cylinder. Exact when c's axis is vertical (an upright can): both are then
 /// prisms over discs, and the distance combines the vertical gap with the gap between the discs.
-/// Any other c is replaced by its world-axis-aligned bounding box (never reports less contact
-/// than there is).
+/// Any other c is bounded by its world-axis-aligned box and by an upright cylinder about its
+/// centre (the larger of the two distances: never reports less contact than there is, and
+/// within max(half_height_m, radius_m) sin(tilt) of exact for a nearly upright c).
 double signedDistance(const OrientedCylinder& c, const VerticalCylinder& v);
 
 /// Length of the cylinder's projection on the unit direction u (metres): its diameter across

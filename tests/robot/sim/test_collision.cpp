@@ -298,6 +298,15 @@ TEST(Collision, BaseAgainstACylinderMatchesBruteForce) {
   const OrientedCylinder can{Pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(1, 0, 0.781)), 0.033, 0.061};
   EXPECT_NEAR(signedDistance(can, VerticalCylinder{{0.6, 0.0}, 0.0, 1.3, 0.25}), 0.4 - 0.283, 1e-12);
   EXPECT_NEAR(signedDistance(can, VerticalCylinder{{0.8, 0.0}, 0.0, 1.3, 0.25}), 0.2 - 0.283, 1e-12);
+  // Tilted by 1e-3 rad: bounded (never more than brute force when apart), and within
+  // (half height + radius) sin(tilt) of the upright can, apart and penetrating.
+  const OrientedCylinder tilted{Pose::fromRotationVector({0, 1e-3, 0}, can.wMc.t), 0.033, 0.061};
+  for (const double x : {0.6, 0.8}) {
+    const VerticalCylinder base{{x, 0.0}, 0.0, 1.3, 0.25};
+    const double d = signedDistance(tilted, base);
+    EXPECT_NEAR(d, signedDistance(can, base), (0.061 + 0.033) * 1e-3) << x;
+    if (x == 0.6) EXPECT_LE(d, bruteBaseDistance(tilted, base) + 1e-9);
+  }
   // Below the can's bottom (a low robot): vertical gap, then both gaps combined.
   EXPECT_NEAR(signedDistance(can, VerticalCylinder{{1.0, 0.0}, 0.0, 0.62, 0.25}), 0.1, 1e-12);
   EXPECT_NEAR(signedDistance(can, VerticalCylinder{{1.0 - 0.283 - 0.03, 0.0}, 0.0, 0.68, 0.25}),
