@@ -20,7 +20,7 @@
 // when the close command takes effect). The solids are boxes and cylinders (scenario shape:
 // cylinder). Distances are exact (capsule-box and capsule-cylinder by a bracketed convex 1-D
 // minimisation, base-box in closed form for boxes with a vertical axis, base-cylinder for upright
-// cylinders; a tilted solid is bounded by its axis-aligned box for the base). They are checked
+// cylinders; for the base, a tilted solid gives a lower bound of its distance). They are checked
 // at the start (activate(), setJointPositions()) and along every integration step at sub-steps
 // over which no point of the robot moves more than 2 mm (bounded from the base and joint speeds),
 // so nothing tunnels and a reported depth is at most ~2 mm more than the first contact. A
