@@ -107,6 +107,9 @@ TEST(Scenario, TheCanStandsOnTheTableWithItsSideGraspFrame) {
   EXPECT_EQ(c.label.size(), cv::Size(512, 284));
   EXPECT_TRUE(c.side_texture.empty());
   EXPECT_NEAR((c.cMo.t).norm() + c.cMo.rotationVector().norm(), 0, 0);  // oMc = identity
+  // Upright: y_o down the axis (-z_w), z_o horizontal into the can.
+  EXPECT_NEAR((can.wMo.R.col(1) - Eigen::Vector3d(0, 0, -1)).norm(), 0, 1e-4);
+  EXPECT_NEAR(can.wMo.R.col(2).z(), 0, 1e-4);
   // The solid: a cylinder about a vertical axis through (0, y, r), spanning the side.
   const Solid& sd = can.solids[0];
   EXPECT_TRUE(sd.cylinder);
