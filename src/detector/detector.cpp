@@ -321,10 +321,9 @@ void detectSeveralViews(const ObjectModel& model, int id, const DetectorOptions&
     res->time_ms.pose += r.time_ms.pose;
     const auto t = Clock::now();
     for (const Detection& d : r.detections) {
-      if (!d.found || !d.cMo || !x) continue;
+      if (!d.found || !d.cMo) continue;
       ViewInstance v{static_cast<int>(k), d, *d.cMo * model.views[k].oMv.inverse(), {}};
-      v.pairs = viewCorrespondences(*views[k].obj, model.views[k].oMv, *d.cMo, x->features, x->grid, camera,
-                                    opt.multiview, opt);
+      v.pairs = viewCorrespondences(*views[k].obj, model.views[k].oMv, d, camera, opt);
       instances.push_back(std::move(v));
     }
     res->time_ms.pose += msSince(t);

@@ -50,10 +50,6 @@ struct MultiViewOptions {
   double max_gap_m = 0.02;
   double max_gap_fraction = 0.05;
   double max_rotation_gap_rad = 0.1745;  ///< 10 deg
-  /// The joint pose's pairs: a reference feature projected by its view's verified pose takes the
-  /// scene feature within this radius (px) nearest in descriptor: the verified pose reprojects
-  /// right features within 1-2 px.
-  double guided_radius_px = 3;
   /// Throws std::invalid_argument "MultiViewOptions.<field>: <problem>".
   void check() const;
 };

@@ -87,7 +87,6 @@ void visitFields(O& o, Visit&& v) {
   v("multiview.max_gap_m", o.multiview.max_gap_m);
   v("multiview.max_gap_fraction", o.multiview.max_gap_fraction);
   v("multiview.max_rotation_gap_rad", o.multiview.max_rotation_gap_rad);
-  v("multiview.guided_radius_px", o.multiview.guided_radius_px);
 }
 
 // check() names fields "<Options>.<field>"; the file names them "<section>.<field>".

@@ -9,17 +9,9 @@ namespace refgrasp::detector {
 
 namespace {
 
-// A reference feature's point in the view's frame, and whether it faces a camera at cMv. A
-// cylinder's points lie on its surface when its pose is the cylinder's own (refined method); with
-// the paper's method the view is its flat label, like a planar view.
-std::optional<Eigen::Vector3d> viewPoint(const ObjectModel& view, const Eigen::Vector2d& ref_px, const Pose& cMv,
-                                         bool on_cylinder) {
-  if (on_cylinder) {
-    if (!view.cylinder->facesCamera(ref_px.x(), ref_px.y(), cMv)) return std::nullopt;
-    return view.cylinder->point(ref_px);
-  }
-  return view.target->backProject(ref_px);
-}
+// A view's pose, as points: its reprojection RMS may be ~0 (a dense alignment's grid fits
+// exactly), but no alignment is better than a tenth of a pixel.
+constexpr double kMinSigmaPx = 0.1;
 
 // A planar view faces the camera at cMv when the camera centre lies on the side of the pattern
 // plane that the reference camera saw it from.
@@ -49,53 +41,37 @@ void MultiViewOptions::check() const {
     bad("max_gap_fraction", "must be in [0, 1]");
   if (!(std::isfinite(max_rotation_gap_rad) && max_rotation_gap_rad >= 0 && max_rotation_gap_rad <= M_PI))
     bad("max_rotation_gap_rad", "must be in [0, pi]");
-  if (!(std::isfinite(guided_radius_px) && guided_radius_px > 0 && guided_radius_px <= 100))
-    bad("guided_radius_px", "must be in (0, 100]");
 }
 
-ViewCorrespondences viewCorrespondences(const RegisteredObject& view, const Pose& oMv, const Pose& cMv,
-                                        const Features& scene, const GridIndex& grid, const Intrinsics& camera,
-                                        const MultiViewOptions& opt, const DetectorOptions& detector) {
+ViewCorrespondences viewCorrespondences(const RegisteredObject& view, const Pose& oMv, const Detection& instance,
+                                        const Intrinsics& camera, const DetectorOptions& detector) {
   ViewCorrespondences out;
   const ObjectModel& model = view.model;
+  if (!instance.cMo) return out;
+  const Pose& cMv = *instance.cMo;
   const bool on_cylinder = model.isCylinder() && detector.pose == PoseMethod::kRefined;
   if (!on_cylinder && !(model.target && model.reference_cMo && planeFacesCamera(model, cMv))) return out;
-  const double max_descriptor_distance = detector.match.max_descriptor_distance;
-  const double sigma_per_size = detector.pose_options.keypoint_sigma_per_size;
-  const Features& ref = view.index.features;
   const Eigen::Matrix3d K = camera.K();
-  // Per scene feature: the reference feature it is paired with and their descriptor distance.
-  std::vector<int> pair_of(static_cast<size_t>(scene.size()), -1);
-  std::vector<float> distance_of(static_cast<size_t>(scene.size()), std::numeric_limits<float>::max());
-  std::vector<std::optional<Eigen::Vector3d>> points(static_cast<size_t>(ref.size()));
-  std::vector<int> near;
-  for (int i = 0; i < ref.size(); ++i) {
-    const cv::Point2f& p = ref.keypoints[static_cast<size_t>(i)].pt;
-    points[static_cast<size_t>(i)] = viewPoint(model, Eigen::Vector2d(p.x, p.y), cMv, on_cylinder);
-    if (!points[static_cast<size_t>(i)]) continue;
-    const Eigen::Vector3d Xc = cMv * *points[static_cast<size_t>(i)];
-    if (!(Xc.z() > 1e-6)) continue;
-    grid.radiusSearch(projectPinhole(K, Xc), opt.guided_radius_px, &near);
-    int best = -1;
-    float best_distance = static_cast<float>(max_descriptor_distance);
-    for (int s : near) {
-      const float d = static_cast<float>(cv::norm(ref.descriptors.row(i), scene.descriptors.row(s), cv::NORM_L2));
-      if (d <= best_distance) {
-        best = s;
-        best_distance = d;
+  const double sigma = std::max(kMinSigmaPx, instance.pose_rms_px);
+  const int n = detector.dense.pose_grid;
+  for (int r = 0; r < n; ++r) {
+    for (int c = 0; c < n; ++c) {
+      const double a = (c + 0.5) / n, b = (r + 0.5) / n;  // cell centres across the pattern
+      std::optional<Eigen::Vector3d> X;
+      if (on_cylinder) {
+        const Eigen::Vector2d uv(a * model.cylinder->image_width - 0.5, b * model.cylinder->image_height - 0.5);
+        if (model.cylinder->facesCamera(uv.x(), uv.y(), cMv)) X = model.cylinder->point(uv);
+      } else {
+        const auto& q = model.target->corners_o;  // TL, TR, BR, BL
+        X = (1 - b) * ((1 - a) * q[0] + a * q[1]) + b * ((1 - a) * q[3] + a * q[2]);
       }
+      if (!X) continue;
+      const Eigen::Vector3d Xc = cMv * *X;
+      if (!(Xc.z() > 1e-6)) continue;
+      out.points_o.push_back(oMv * *X);
+      out.points_px.push_back(projectPinhole(K, Xc));
+      out.sigma_px.push_back(sigma);
     }
-    if (best < 0 || !(best_distance < distance_of[static_cast<size_t>(best)])) continue;
-    pair_of[static_cast<size_t>(best)] = i;
-    distance_of[static_cast<size_t>(best)] = best_distance;
-  }
-  for (int s = 0; s < scene.size(); ++s) {
-    const int i = pair_of[static_cast<size_t>(s)];
-    if (i < 0) continue;
-    const cv::KeyPoint& k = scene.keypoints[static_cast<size_t>(s)];
-    out.points_o.push_back(oMv * *points[static_cast<size_t>(i)]);
-    out.points_px.emplace_back(k.pt.x, k.pt.y);
-    out.sigma_px.push_back(sigma_per_size > 0 ? std::max(0.1, sigma_per_size * k.size) : 1.0);
   }
   return out;
 }

@@ -13,10 +13,13 @@
 // disagreeing group is an instance of its own, best (most inliers) first, so a wrong oMv or two
 // boxes give two instances, not one pose between them.
 //
-// A group's correspondences come from its member's verified pose, not from the matcher: every
-// reference feature of the view whose 3D point faces the camera is projected with cMv and paired
-// with the nearest-in-descriptor scene feature within guided_radius_px of the projection
-// (descriptor distance <= MatchOptions::max_descriptor_distance, each scene feature used once).
+// A member's measurement enters the joint fit as its own verified pose seen through a grid:
+// pose_grid x pose_grid points over its pattern (a cylinder's: over the label, the half facing
+// the camera), each paired with its projection under cMv, sigma the view's pose RMS (at least
+// 0.1 px). Each view thus weighs with the precision of its own method (a dense alignment's grid
+// fits to a fraction of a pixel, a fit to features to ~1 px), in the image where it was
+// measured; refitting the views' SIFT inliers instead gave a joint pose several times less
+// accurate than the better face's dense pose (docs/results.md "Several-view objects").
 // Internal to the detector library.
 #include <string>
 #include <vector>
@@ -26,8 +29,8 @@
 
 namespace refgrasp::detector {
 
-/// One view's 3D-2D pairs under its verified pose: points in the several-view object's frame o
-/// (metres), undistorted scene px, and each point's localisation sigma (px).
+/// One view's 3D-2D pairs: points in the several-view object's frame o (metres), undistorted
+/// scene px, and each point's sigma (px).
 struct ViewCorrespondences {
   std::vector<Eigen::Vector3d> points_o;
   std::vector<Eigen::Vector2d> points_px;
@@ -43,14 +46,12 @@ struct ViewInstance {
   ViewCorrespondences pairs;
 };
 
-/// The pairs of a view's instance (see the header comment). view: the view's registered object;
-/// oMv: the view's frame in the object's frame; cMv: its verified pose; scene/grid: the features
-/// the view was matched on (undistorted px). detector: the pose method (a cylinder view's points
-/// lie on the cylinder with the refined method, on its flat label with the paper's), the
-/// descriptor bound and the sigma per keypoint size (PoseOptions::keypoint_sigma_per_size).
-ViewCorrespondences viewCorrespondences(const RegisteredObject& view, const Pose& oMv, const Pose& cMv,
-                                        const Features& scene, const GridIndex& grid, const Intrinsics& camera,
-                                        const MultiViewOptions& opt, const DetectorOptions& detector);
+/// The pairs of a view's instance (see the header comment): points in the object's frame o,
+/// their projections under instance.cMo (undistorted px). oMv: the view's frame in o; detector:
+/// the pose method (a cylinder view lies on the cylinder with the refined method, on its flat
+/// label with the paper's) and dense.pose_grid. Empty when the view faces away.
+ViewCorrespondences viewCorrespondences(const RegisteredObject& view, const Pose& oMv, const Detection& instance,
+                                        const Intrinsics& camera, const DetectorOptions& detector);
 
 /// True when two poses of the object agree within opt (translation gap <= max_gap_m +
 /// max_gap_fraction x the nearer one's distance, rotation gap <= max_rotation_gap_rad).
