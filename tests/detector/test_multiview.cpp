@@ -10,6 +10,7 @@
 #include <random>
 
 #include "common/temp_dir.h"
+#include "core/error.h"
 #include "detector/detector.h"
 #include "detector/multiview.h"
 #include "detector/object.h"
@@ -355,6 +356,28 @@ TEST(FuseViews, AgreeingViewsGiveTheExactJointPoseAndDisagreeingOnesStaySeparate
   EXPECT_EQ(out[0].instance, 0);
   EXPECT_EQ(out[1].instance, 1);
   EXPECT_LT(translationError(*out[0].cMo, cMo * off), 1e-12);  // alone: its own pose, untouched
+}
+
+}  // namespace
+
+namespace {
+
+// Built in code rather than loaded: a view the detector cannot pose is refused at start-up.
+TEST(MultiViewObject, AViewWithoutMetricGeometryIsRefusedAtAddObject) {
+  ObjectModel box;
+  box.name = "box";
+  box.views.push_back({"flat", std::make_shared<ObjectModel>(makeObjectModel(
+                                   "flat", loadMedia("targets/tea_box.png"), std::nullopt, std::nullopt)),
+                       Pose()});
+  Detector det;
+  try {
+    det.addObject(box);
+    ADD_FAILURE() << "accepted";
+  } catch (const ConfigError& e) {
+    EXPECT_NE(std::string(e.what()).find("box: views[0].definition: a view needs metric geometry"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_EQ(det.objectCount(), 0);
 }
 
 }  // namespace
