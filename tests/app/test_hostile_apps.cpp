@@ -224,7 +224,7 @@ TEST(HostileSeveralViews, ToolsThatTrackRefuseItInOneLineAndPoseReplayDetectsIt)
                                                       "/config/objects/cereal_box.yaml\n"
                                                       "    oMv: {translation: [0, 0, 0], rotation_vector: [0, 0, 0]}\n");
   expectOneLine(run("enon_grasp", "--backend sim --enon " + kEnon + " --scenario " +
-                                      scenarioWith("views", "definition: ../objects/cereal_box.yaml",
+                                      scenarioWith("views", "definition: " + kSource + "/config/objects/cereal_box.yaml",
                                                    "definition: " + box) +
                                       " --oracle"),
                 2, box + ": views: several-view objects are not tracked", "enon_grasp");

@@ -313,6 +313,26 @@ TEST_F(MultiView, APriorOnTheObjectGuidesEveryView) {
   EXPECT_FALSE(det.detect(img, cam, {}, away).find(id));
 }
 
+// Stereo: each eye fuses the views, then the eyes' poses of the object are fused.
+TEST_F(MultiView, StereoFusesBothEyesPosesOfTheObject) {
+  Detector det;
+  const int id = det.addObject(loadObjectDefinition(*path_));
+  StereoRig rig;
+  rig.left = rig.right = sceneCamera();
+  rig.lMr = Pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0.12, 0, 0));
+  const Pose lMo = lookAtBox(130 * kDeg, 25 * kDeg, 0.9);
+  const StereoDetectionResult r =
+      det.detectStereo(renderScene(rig.left, box_->placed(lMo), 961),
+                       renderScene(rig.right, box_->placed(rig.lMr.inverse() * lMo), 962), rig);
+  ASSERT_TRUE(r.ok) << r.error;
+  ASSERT_EQ(r.objects.size(), 1u);
+  EXPECT_EQ(r.objects[0].fused.eyes, EyesUsed::kBoth);
+  ASSERT_TRUE(r.objects[0].fused.lMo);
+  EXPECT_TRUE(poseWithin(*r.objects[0].fused.lMo, lMo));
+  EXPECT_FALSE(r.objects[0].left.views.empty());
+  EXPECT_EQ(r.objects[0].object, id);
+}
+
 // fuseViews on exact correspondences: agreeing views give the joint pose the pairs define,
 // disagreeing ones separate instances, best first.
 TEST(FuseViews, AgreeingViewsGiveTheExactJointPoseAndDisagreeingOnesStaySeparate) {
