@@ -313,6 +313,20 @@ TEST_F(MultiView, APriorOnTheObjectGuidesEveryView) {
   EXPECT_FALSE(det.detect(img, cam, {}, away).find(id));
 }
 
+// Five views are five chances of a false detection: none on cluttered scenes without the box.
+TEST_F(MultiView, NoFalsePositivesOnClutter) {
+  Detector det;
+  const int id = det.addObject(loadObjectDefinition(*path_));
+  const Intrinsics cam = sceneCamera();
+  int false_positives = 0;
+  for (uint64_t seed = 4000; seed < 4024; ++seed) {
+    const DetectionResult r = det.detect(renderScene(cam, {}, seed), cam);
+    ASSERT_TRUE(r.ok);
+    false_positives += r.find(id).has_value();
+  }
+  EXPECT_EQ(false_positives, 0);
+}
+
 // Stereo: each eye fuses the views, then the eyes' poses of the object are fused.
 TEST_F(MultiView, StereoFusesBothEyesPosesOfTheObject) {
   Detector det;
