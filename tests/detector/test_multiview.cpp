@@ -97,6 +97,10 @@ TEST_F(MultiView, TheObjectHasOneIdAndItsViewsStayInside) {
   EXPECT_EQ(box->views.front(), "front");
   EXPECT_TRUE(poseWithin(*box->cMo, cMo)) << translationError(*box->cMo, cMo) << " m " << rotationError(*box->cMo, cMo) / kDeg << " deg";
   // The front face alone: its pose is the front face's frame, not the box's.
+  // One extraction for the frame, shared by the five views and the other object.
+  Detector alone;
+  alone.addObject(loadObjectDefinition((*dir_ / "box_front.yaml").string()));
+  EXPECT_EQ(r.scene_features, alone.detect(renderScene(cam, box_->placed(cMo), 7), cam).scene_features);
   const auto front = r.find(b);
   ASSERT_TRUE(front);
   EXPECT_TRUE(front->views.empty());
