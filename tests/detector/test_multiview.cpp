@@ -191,7 +191,8 @@ TEST_F(MultiView, ABoxTurnedAwayIsFoundByItsBackOrSides) {
       found += poseWithin(*d->cMo, cMo);
     }
   }
-  EXPECT_GE(found, frames - 1) << found << " of " << frames;
+  std::printf("turned away: %d of %d found and posed\n", found, frames);
+  EXPECT_GE(found, frames - 1);
 }
 
 // Where two faces show, the joint pose is about as accurate as the better of the two faces'
