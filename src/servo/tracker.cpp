@@ -6,8 +6,8 @@
 #include <stdexcept>
 #include <opencv2/video/tracking.hpp>
 
-#include "core/geometry.h"
 #include "detector/pose.h"
+#include "servo/surface_model.h"
 #include "servo/tracker_mbt.h"
 
 namespace refgrasp::servo {
@@ -28,6 +28,8 @@ void TrackerOptions::check() const {
   need(std::isfinite(min_visible_fraction) && min_visible_fraction >= 0 && min_visible_fraction <= 1,
        "min_visible_fraction", "must be in [0, 1]");
   need(max_features >= min_features, "max_features", "must be >= min_features");
+  need(std::isfinite(seed_min_facing_cos) && seed_min_facing_cos >= 0 && seed_min_facing_cos < 1,
+       "seed_min_facing_cos", "must be in [0, 1)");
   need(std::isfinite(feature_quality) && feature_quality > 0 && feature_quality < 1,
        "feature_quality", "must be in (0, 1)");
   need(std::isfinite(feature_min_distance_px) && feature_min_distance_px >= 1,
@@ -61,71 +63,24 @@ void TrackerOptions::check() const {
 
 namespace {
 
-/// The pattern polygon on its plane, object frame (metres), from the reference polygon.
-std::vector<Eigen::Vector3d> patternPolygonObject(const detector::ObjectModel& object) {
-  std::vector<Eigen::Vector3d> poly;
-  for (const Eigen::Vector2d& px : object.pattern_polygon_px) {
-    const Eigen::Vector2d und = object.camera ? object.camera->undistortPixel(px) : px;
-    const std::optional<Eigen::Vector3d> X = object.target->backProject(und);
-    if (!X) throw std::invalid_argument(object.name + ": pattern polygon vertex off the pattern plane");
-    poly.push_back(*X);
-  }
-  return poly;
-}
-
-/// Projected polygon (distorted image px); empty when a vertex is behind the camera.
-std::vector<Eigen::Vector2d> projectPolygon(const std::vector<Eigen::Vector3d>& poly_o,
-                                            const Pose& cMo, const Intrinsics& cam) {
-  std::vector<Eigen::Vector2d> px;
-  px.reserve(poly_o.size());
-  for (const Eigen::Vector3d& X : poly_o) {
-    const Eigen::Vector3d Xc = cMo * X;
-    if (!(Xc.z() > 1e-6)) return {};
-    px.push_back(cam.project(Xc));
-  }
-  return px;
-}
-
-double visibleFractionOf(const std::vector<Eigen::Vector3d>& poly_o, const Pose& cMo,
-                         const Intrinsics& cam) {
-  const std::vector<Eigen::Vector2d> px = projectPolygon(poly_o, cMo, cam);
-  if (px.size() < 3) return 0;
-  const double area = std::abs(signedArea(px));
-  if (!(area > 1e-9)) return 0;
-  const std::vector<Eigen::Vector2d> in =
-      clipToBox(px, Eigen::Vector2d(-0.5, -0.5), Eigen::Vector2d(cam.width - 0.5, cam.height - 0.5));
-  return in.size() < 3 ? 0 : std::min(1.0, std::abs(signedArea(in)) / area);
-}
-
-/// Point on the pattern plane (object frame) seen at distorted pixel px with pose cMo.
-std::optional<Eigen::Vector3d> backProjectToPlane(const detector::ObjectModel& object,
-                                                  const Pose& cMo, const Intrinsics& cam,
-                                                  const Eigen::Vector2d& px) {
-  const Eigen::Vector2d xn = cam.undistortToNormalized(px);
-  const Eigen::Vector3d ray_c(xn.x(), xn.y(), 1);
-  // Plane n.X_o = d in the camera frame: n_c = R n, d_c = d + n_c . t.
-  const Eigen::Vector3d n_c = cMo.R * object.plane_normal_o;
-  const double d_c = object.plane_offset_m + n_c.dot(cMo.t);
-  const double den = n_c.dot(ray_c);
-  if (std::abs(den) < 1e-9) return std::nullopt;
-  const double s = d_c / den;
-  if (!(s > 1e-6)) return std::nullopt;
-  return cMo.inverse() * (s * ray_c);
-}
-
 std::string lostLine(const char* what, double value, const char* op, double limit) {
   char buf[128];
   std::snprintf(buf, sizeof buf, "%s (%.3g %s %.3g)", what, value, op, limit);
   return buf;
 }
 
-/// KLT features anchored on the pattern plane + robust pose (TrackerMethod::kKlt).
-class KltPlanarTracker : public FrameTracker {
+/// The detector's alignment (Detector::alignPose) aligns a planar pattern with its reference
+/// image; a cylinder's label or several views have no such single plane.
+bool alignable(const detector::ObjectModel& object) {
+  return object.has3d() && !object.isCylinder() && !object.isMultiView();
+}
+
+/// KLT features anchored on the object's textured surfaces + robust pose (TrackerMethod::kKlt).
+class KltTracker : public FrameTracker {
  public:
-  KltPlanarTracker(const detector::ObjectModel& object, const TrackerOptions& opt, PoseAligner align)
-      : object_(object), opt_(opt), align_(opt.align_to_reference ? std::move(align) : nullptr),
-        poly_o_(patternPolygonObject(object)) {
-  }
+  KltTracker(const detector::ObjectModel& object, const TrackerOptions& opt, PoseAligner align)
+      : opt_(opt), align_(opt.align_to_reference && alignable(object) ? std::move(align) : nullptr),
+        surfaces_(object) {}
 
   TrackStep start(const cv::Mat& gray, const Intrinsics& cam, const Pose& cMo) override {
     try {
@@ -133,7 +88,7 @@ class KltPlanarTracker : public FrameTracker {
       X_o_.clear();
       TrackStep s;
       s.cMo = cMo;
-      s.quality.visible_fraction = visibleFractionOf(poly_o_, cMo, cam);
+      s.quality.visible_fraction = surfaces_.visibleFraction(cMo, cam);
       if (!cMo.isFinite() || s.quality.visible_fraction < opt_.min_visible_fraction) {
         s.lost_reason = lostLine("pattern out of view", s.quality.visible_fraction, "<",
                                  opt_.min_visible_fraction);
@@ -184,23 +139,13 @@ class KltPlanarTracker : public FrameTracker {
   }
 
  private:
-  /// Features (goodFeaturesToTrack) inside the projected pattern shrunk by the border, at least
-  /// feature_min_distance_px from `keep`; their points on the pattern plane by pose cMo.
+  /// Features (goodFeaturesToTrack) inside the projected textured surfaces facing the camera,
+  /// shrunk by the border, at least feature_min_distance_px from `keep`; their points on the
+  /// surfaces by pose cMo.
   void seed(const cv::Mat& gray, const Intrinsics& cam, const Pose& cMo,
             std::vector<cv::Point2f>* pts, std::vector<Eigen::Vector3d>* X,
             const std::vector<cv::Point2f>& keep = {}, int wanted = -1) const {
-    const std::vector<Eigen::Vector2d> poly = projectPolygon(poly_o_, cMo, cam);
-    if (poly.size() < 3) return;
-    cv::Mat mask = cv::Mat::zeros(gray.size(), CV_8UC1);
-    std::vector<cv::Point> p;
-    for (const auto& v : poly) p.emplace_back(cvRound(v.x()), cvRound(v.y()));
-    cv::fillPoly(mask, std::vector<std::vector<cv::Point>>{p}, cv::Scalar(255));
-    const int border = static_cast<int>(std::ceil(opt_.pattern_border_px));
-    if (border > 0) {
-      cv::erode(mask, mask, cv::getStructuringElement(cv::MORPH_RECT, {2 * border + 1, 2 * border + 1}));
-      // Also keep off the image border (KLT windows there are truncated).
-      cv::rectangle(mask, cv::Rect(0, 0, mask.cols, mask.rows), cv::Scalar(0), border);
-    }
+    cv::Mat mask = surfaces_.mask(cMo, cam, opt_.pattern_border_px, opt_.seed_min_facing_cos);
     const int r = static_cast<int>(std::ceil(opt_.feature_min_distance_px));
     for (const cv::Point2f& k : keep) cv::circle(mask, k, r, cv::Scalar(0), cv::FILLED);
     std::vector<cv::Point2f> found;
@@ -212,10 +157,10 @@ class KltPlanarTracker : public FrameTracker {
     cv::cornerSubPix(gray, found, cv::Size(5, 5), cv::Size(-1, -1),
                      cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 0.03));
     for (const cv::Point2f& f : found) {
-      const auto Xo = backProjectToPlane(object_, cMo, cam, Eigen::Vector2d(f.x, f.y));
-      if (!Xo) continue;
+      const std::optional<SurfaceHit> hit = surfaces_.intersect(cMo, cam, Eigen::Vector2d(f.x, f.y));
+      if (!hit) continue;
       pts->push_back(f);
-      X->push_back(*Xo);
+      X->push_back(hit->X_o);
     }
   }
 
@@ -426,7 +371,7 @@ class KltPlanarTracker : public FrameTracker {
     s.cMo = pr.cMo;
     s.quality.features = static_cast<int>(Xi.size());
     s.quality.projection_error_px = Xi.empty() ? 0 : std::sqrt(sq / static_cast<double>(Xi.size()));
-    s.quality.visible_fraction = visibleFractionOf(poly_o_, s.cMo, cam);
+    s.quality.visible_fraction = surfaces_.visibleFraction(s.cMo, cam);
 
     // Keep the inliers only; after an alignment, re-anchored on the aligned pose.
     std::vector<cv::Point2f> kept_pts;
@@ -435,8 +380,11 @@ class KltPlanarTracker : public FrameTracker {
     for (size_t i = 0; i < m.feature.size(); ++i) {
       if (!m.inlier[i]) continue;
       std::optional<Eigen::Vector3d> Xo = X_o_[m.feature[i]];
-      if (s.quality.aligned)
-        Xo = backProjectToPlane(object_, s.cMo, cam, Eigen::Vector2d(m.pts[i].x, m.pts[i].y));
+      if (s.quality.aligned) {
+        const std::optional<SurfaceHit> hit =
+            surfaces_.intersect(s.cMo, cam, Eigen::Vector2d(m.pts[i].x, m.pts[i].y));
+        Xo = hit ? std::optional<Eigen::Vector3d>(hit->X_o) : std::nullopt;
+      }
       if (!Xo) continue;
       kept_pts.push_back(m.pts[i]);
       kept_ids.push_back(ids_[m.feature[i]]);
@@ -484,14 +432,13 @@ class KltPlanarTracker : public FrameTracker {
     return s;
   }
 
-  const detector::ObjectModel& object_;
   TrackerOptions opt_;
-  PoseAligner align_;
-  std::vector<Eigen::Vector3d> poly_o_;
+  PoseAligner align_;  ///< empty: KLT alone (no aligner given, or the object is not one plane)
+  SurfaceModel surfaces_;
   std::vector<cv::Mat> prev_pyr_;      ///< LK pyramid of the previous frame
   std::vector<cv::Point2f> pts_;       ///< feature positions in the previous frame
   std::vector<long> ids_;              ///< KLT ids of the features, in KLT order
-  std::vector<Eigen::Vector3d> X_o_;   ///< their points on the pattern plane, object frame
+  std::vector<Eigen::Vector3d> X_o_;   ///< their points on the object's surfaces, object frame
   long next_id_ = 0;
   int started_ = 0;
   int unaligned_ = 0;  ///< frames in a row the aligner refused
@@ -502,17 +449,23 @@ class KltPlanarTracker : public FrameTracker {
 }  // namespace
 
 double visibleFraction(const detector::ObjectModel& object, const Pose& cMo, const Intrinsics& camera) {
-  if (!object.has3d()) return 0;
-  return visibleFractionOf(patternPolygonObject(object), cMo, camera);
+  if (!object.hasPose()) return 0;
+  return SurfaceModel(object).visibleFraction(cMo, camera);
 }
 
 std::unique_ptr<FrameTracker> makePlanarTracker(const detector::ObjectModel& object,
                                                 const TrackerOptions& options, PoseAligner align) {
   options.check();
-  if (!object.has3d())
-    throw std::invalid_argument(object.name + ": tracking needs a 3D object (reference_pose)");
-  if (options.method == TrackerMethod::kMbt) return makeMbtTracker(object, options);
-  return std::make_unique<KltPlanarTracker>(object, options, std::move(align));
+  if (!object.hasPose())
+    throw std::invalid_argument(object.name + ": tracking needs an object with a pose (reference_pose, "
+                                              "cylinder or views)");
+  if (options.method == TrackerMethod::kMbt) {
+    if (object.isCylinder() || object.isMultiView())
+      throw std::invalid_argument(object.name + ": the mbt tracker follows one planar pattern; use klt "
+                                                "for a cylinder or several views");
+    return makeMbtTracker(object, options);
+  }
+  return std::make_unique<KltTracker>(object, options, std::move(align));
 }
 
 TrackerFactory planarTrackerFactory(const TrackerOptions& options, const detector::Detector* detector) {
