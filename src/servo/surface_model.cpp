@@ -40,8 +40,8 @@ double facingCos(const Eigen::Vector3d& n_out, const Eigen::Vector3d& X, const E
 
 SurfaceModel::SurfaceModel(const detector::ObjectModel& object) {
   if (!object.hasPose())
-    throw std::invalid_argument(object.name + ": tracking needs an object with a pose (reference_pose, "
-                                              "cylinder or views)");
+    throw std::invalid_argument(object.name + ": tracking needs a 3D object (reference_pose, cylinder "
+                                              "or views)");
   add(object, Pose());
 }
 
@@ -99,7 +99,7 @@ std::optional<SurfaceHit> SurfaceModel::intersect(const Pose& cMo, const Intrins
   for (size_t i = 0; i < surfaces_.size(); ++i) {
     const Surface& S = surfaces_[i];
     const Pose cMs = several ? cMo * S.oMs : cMo;
-    Eigen::Vector3d X_s;
+    Eigen::Vector3d X_s, n_s;
     double depth = 0;  // along the ray, in units of ray_c (camera z)
     if (S.cylinder) {
       const Pose sMc = cMs.inverse();
@@ -107,6 +107,7 @@ std::optional<SurfaceHit> SurfaceModel::intersect(const Pose& cMo, const Intrins
       const std::optional<double> t = S.cylinder->intersect(o, d);
       if (!t) continue;
       X_s = o + *t * d;
+      n_s = Eigen::Vector3d(X_s.x(), 0, X_s.z() - S.cylinder->radius_m).normalized();  // away from the axis
       depth = *t;
       if (several) {
         const std::optional<Eigen::Vector2d> uv = S.cylinder->pixel(X_s);
@@ -121,6 +122,7 @@ std::optional<SurfaceHit> SurfaceModel::intersect(const Pose& cMo, const Intrins
       depth = d_c / den;
       if (!(depth > 1e-6)) continue;
       X_s = cMs.inverse() * (depth * ray_c);
+      n_s = S.outer_sign * S.normal_s.normalized();
       if (several) {
         // Seen from its outer side, and within the pattern polygon.
         if (!(S.outer_sign * den < 0)) continue;
@@ -133,7 +135,7 @@ std::optional<SurfaceHit> SurfaceModel::intersect(const Pose& cMo, const Intrins
     }
     if (depth < best_depth) {
       best_depth = depth;
-      best = SurfaceHit{several ? S.oMs * X_s : X_s, static_cast<int>(i)};
+      best = SurfaceHit{several ? S.oMs * X_s : X_s, several ? S.oMs.R * n_s : n_s, static_cast<int>(i)};
     }
   }
   return best;

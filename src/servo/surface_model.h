@@ -34,6 +34,7 @@ namespace refgrasp::servo {
 /// A camera ray's first textured point.
 struct SurfaceHit {
   Eigen::Vector3d X_o;  ///< the point, object frame (metres)
+  Eigen::Vector3d n_o;  ///< the surface's outward unit normal there, object frame
   int surface = -1;     ///< which surface (0 .. SurfaceModel::surfaceCount() - 1)
 };
 

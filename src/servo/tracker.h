@@ -127,6 +127,14 @@ struct TrackerOptions {
   /// Re-seed features in the visible pattern when fewer than this x max_features are left.
   double reseed_fraction = 0.5;
   int pose_iterations = 10;             ///< robust LM iterations per frame
+  /// Without an aligner (KLT alone, a cylinder, several views): each feature is moved to where
+  /// its appearance in the frame it was seeded in, warped to the pose through its tangent plane,
+  /// correlates best within appearance_search_px of where KLT put it (correlation 0..1 at least
+  /// appearance_min_score, else KLT's position stays), and the pose is solved again; KLT alone
+  /// slides a little every frame and the pose drifts with it.
+  bool appearance_match = true;
+  double appearance_search_px = 3;
+  double appearance_min_score = 0.7;
   bool mbt_edges = false;               ///< kMbt: add moving edges on the pattern outline
   bool align_to_reference = true;       ///< kKlt: align each pose with the reference (if given)
   /// The alignment is refused when a pattern corner moves more (corners out of the view move
