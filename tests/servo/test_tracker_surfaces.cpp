@@ -17,6 +17,7 @@
 #include "robot/sim/scenario.h"
 #include "robot/sim/synthetic_scene.h"
 #include "servo/surface_model.h"
+#include "servo/target_estimator.h"
 #include "servo/target_tracker.h"
 #include "servo/tracker.h"
 
@@ -399,4 +400,36 @@ TEST(SurfaceTracker, ThePipelineDetectsConfirmsAndTracksACan) {
   EXPECT_NE(modes.find('T', first), std::string::npos) << modes;
   EXPECT_GE(confirmed, static_cast<int>(modes.size() - first) - 1);
   EXPECT_LT(*std::max_element(trans.begin(), trans.end()), 0.015);
+}
+
+// The new options are checked at start-up; the oracle (ground truth as an estimator) sees a
+// several-view object by the view it shows most squarely.
+TEST(SurfaceTracker, OptionsAreCheckedAndTheOracleSeesSeveralViews) {
+  const auto throwsWith = [](const servo::TrackerOptions& o, const std::string& what) {
+    try {
+      o.check();
+      ADD_FAILURE() << "expected " << what;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(what), std::string::npos) << e.what();
+    }
+  };
+  servo::TrackerOptions o;
+  o.seed_min_facing_cos = 1;
+  throwsWith(o, "TrackerOptions.seed_min_facing_cos");
+  o = servo::TrackerOptions();
+  o.appearance_search_px = std::nan("");
+  throwsWith(o, "TrackerOptions.appearance_search_px");
+  o = servo::TrackerOptions();
+  o.appearance_min_score = -0.1;
+  throwsWith(o, "TrackerOptions.appearance_min_score");
+
+  const servo::OracleEstimator oracle(boxModel());
+  const Intrinsics cam = rt::sceneCamera();
+  std::array<Eigen::Vector2d, 4> corners;
+  // The end of the turn: the front faces away, the +x face is 20 deg from square.
+  ASSERT_TRUE(oracle.visible(boxPose(89, 90), cam, &corners));
+  const auto quads = servo::patternQuads(boxModel());
+  EXPECT_LT((corners[2] - cam.project(boxPose(89, 90) * quads[1][2])).norm(), 1e-9);
+  // Turned half-way round: the photographed faces are all away or edge-on.
+  EXPECT_FALSE(oracle.visible(Pose(rotY(M_PI), Eigen::Vector3d(0, 0, 0.6)), cam));
 }
