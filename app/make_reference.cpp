@@ -192,10 +192,10 @@ int makeReference(int argc, char** argv) {
       o.radius_m = radius;
       o.max_incidence_rad = max_incidence_deg * M_PI / 180;
       o.pixels_per_metre = pixels_per_metre;
-      const reference::CylinderGeometry g = reference::cylinderGeometry(pts, cam, o);
+      const reference::CylinderGeometry g = reference::cylinderGeometry(photo, pts, cam, o);
       tool::writeImage(label_image, reference::unrollLabel(photo, cam, g));
       reference::writeCylinderDefinition(output, name, label_image, g);
-      tool::writeImage(check, reference::drawCylinder(photo, g, pts, cam));
+      tool::writeImage(check, reference::drawCylinder(photo, g, cam));
       std::cerr << "make_reference: " << output << " (label " << label_image << ", " << g.label.image_width << "x"
                 << g.label.image_height << " px, " << g.label.width_m << " x " << g.label.height_m
                 << " m, axis at " << g.axis_distance_m << " m); check " << check << "\n";

@@ -1,5 +1,6 @@
 #include "reference/cylinder_reference.h"
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
@@ -21,6 +22,7 @@ constexpr double kDeg = M_PI / 180.0;
 constexpr int kMinLabelPx = 16;      // a smaller unrolled label has too few features to detect
 constexpr int kMaxLabelPx = 16384;   // per side
 constexpr int kMaxSupersampling = 8; // label pixels covering more photo pixels are box-averaged over 8 x 8
+constexpr size_t kMaxPeaks = 4;      // edge candidates per sample of a silhouette edge
 
 // Unit viewing ray (camera frame) of a distorted photo pixel.
 Eigen::Vector3d rayOf(const Intrinsics& cam, const Eigen::Vector2d& px) {
@@ -37,6 +39,130 @@ Eigen::Vector3d edgePlane(const std::array<Eigen::Vector2d, 2>& edge, const Intr
     refuse(option + ": its two points are less than " + yamlNumber(min_px) + " px apart");
   const Eigen::Vector3d n = rayOf(cam, edge[0]).cross(rayOf(cam, edge[1]));
   return n.normalized();
+}
+
+double bilinear(const cv::Mat& img, const Eigen::Vector2d& p) {
+  const double x = std::clamp(p.x(), 0.0, img.cols - 1.001), y = std::clamp(p.y(), 0.0, img.rows - 1.001);
+  const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+  const double fx = x - x0, fy = y - y0;
+  const auto at = [&](int r, int c) { return static_cast<double>(img.at<float>(r, c)); };
+  return (1 - fy) * ((1 - fx) * at(y0, x0) + fx * at(y0, x0 + 1)) + fy * ((1 - fx) * at(y0 + 1, x0) + fx * at(y0 + 1, x0 + 1));
+}
+
+// Snaps a clicked silhouette edge to the photo. Every 2 px along the clicked segment, the
+// intensity steps across it within +-search_px (photo smoothed with sigma 0.5 px; the 4 largest
+// local maxima of the step that reach a fifth of the largest, parabolic sub-pixel peaks): where
+// the background is as bright as the can, the silhouette is a weaker step than the label's
+// texture beside it, but still a step. Lines through two candidates (undistorted, where the
+// silhouette is straight) score per quarter of the segment, each sample 1 - (d / 0.5 px)^2 for
+// its nearest candidate within 0.5 px (MSAC), and a line scores its weakest quarter: the
+// silhouette runs along the whole segment, the label's own edges are short or curved, and a line
+// that follows the silhouette over half the segment and something else over the rest loses.
+// Among the lines scoring at least 70 % of the best, the outermost (`outward`: away from the
+// other edge) wins: a band along the silhouette (a highlight, the label's texture averaged at a
+// grazing angle) makes a second straight edge just inside it, as long as the can. The line is
+// refitted to its candidates and the plane fitted (least squares) to their rays. Keeps `plane`
+// when fewer than a third of the samples (or 8) support any line: no clear edge near the clicks.
+bool snapEdge(const cv::Mat& smooth, const std::array<Eigen::Vector2d, 2>& edge, const Eigen::Vector2d& outward,
+              const Intrinsics& cam, double search_px, Eigen::Vector3d& plane) {
+  const Eigen::Vector2d along = (edge[1] - edge[0]).normalized(), across(-along.y(), along.x());
+  const double length = (edge[1] - edge[0]).norm();
+  const int n = std::min(200, static_cast<int>(length / 2));
+  std::vector<std::vector<Eigen::Vector2d>> found(n + 1);  // per sample: candidates, undistorted px
+  std::vector<std::pair<int, Eigen::Vector2d>> all;        // (sample, candidate)
+  for (int k = 0; k <= n; ++k) {
+    const Eigen::Vector2d q = edge[0] + (length * k / std::max(n, 1)) * along;
+    std::vector<double> g;
+    for (double s = -search_px - 0.5; s <= search_px + 0.5 + 1e-9; s += 0.5)
+      g.push_back(std::abs(bilinear(smooth, q + (s + 0.25) * across) - bilinear(smooth, q + (s - 0.25) * across)));
+    const double top = *std::max_element(g.begin(), g.end());
+    std::vector<size_t> peaks;
+    for (size_t i = 1; i + 1 < g.size(); ++i)
+      if (g[i] >= 2 && g[i] >= 0.2 * top && g[i] >= g[i - 1] && g[i] > g[i + 1]) peaks.push_back(i);
+    std::sort(peaks.begin(), peaks.end(), [&](size_t a, size_t b) { return g[a] > g[b]; });
+    peaks.resize(std::min<size_t>(peaks.size(), kMaxPeaks));
+    for (const size_t i : peaks) {
+      const double den = g[i - 1] - 2 * g[i] + g[i + 1];
+      const double s = -search_px - 0.5 + 0.5 * i + (den < 0 ? 0.25 * (g[i - 1] - g[i + 1]) / den : 0);
+      found[k].push_back(cam.undistortPixel(q + s * across));
+      all.emplace_back(k, found[k].back());
+    }
+  }
+  // The line through `a` with unit normal `nrm`: its MSAC score, its support and (on) the
+  // nearest candidate of each sample that supports it.
+  const double tol = 0.5;
+  struct Support {
+    double score = 0;   // the least of the four quarters' scores
+    int count = 0;
+  };
+  const auto support = [&](const Eigen::Vector2d& a, const Eigen::Vector2d& nrm, std::vector<Eigen::Vector2d>* on) {
+    Support sup;
+    std::array<double, 4> quarter{0, 0, 0, 0};
+    for (size_t k = 0; k < found.size(); ++k) {
+      const Eigen::Vector2d* best = nullptr;
+      double best_d = tol;
+      for (const Eigen::Vector2d& c : found[k])
+        if (const double d = std::abs(nrm.dot(c - a)); d < best_d) {
+          best_d = d;
+          best = &c;
+        }
+      if (!best) continue;
+      quarter[std::min<size_t>(3, 4 * k / found.size())] += 1 - (best_d / tol) * (best_d / tol);
+      ++sup.count;
+      if (on) on->push_back(*best);
+    }
+    sup.score = *std::min_element(quarter.begin(), quarter.end());
+    return sup;
+  };
+  struct Line {
+    Support sup;
+    Eigen::Vector2d a, nrm;
+  };
+  std::vector<Line> lines;
+  Support best;
+  for (size_t i = 0; i < all.size(); ++i)
+    for (size_t j = i + 1; j < all.size(); ++j) {
+      if (std::abs(all[j].first - all[i].first) < (n + 1) / 4) continue;  // short baselines tilt too easily
+      const Eigen::Vector2d d = all[j].second - all[i].second;
+      const Eigen::Vector2d nrm = Eigen::Vector2d(-d.y(), d.x()).normalized();
+      const Support sup = support(all[i].second, nrm, nullptr);
+      if (sup.score > best.score || (sup.score == best.score && sup.count > best.count)) best = sup;
+      if (sup.score > 0) lines.push_back({sup, all[i].second, nrm});
+    }
+  if (3 * best.count < n + 1 || best.count < 8) return false;
+  // The outermost of the lines near the best, measured along `outward` at the segment's middle.
+  const Eigen::Vector2d mid = cam.undistortPixel(0.5 * (edge[0] + edge[1]));
+  double outermost = -1e9;
+  Eigen::Vector2d line_a, line_n;
+  for (const Line& l : lines) {
+    const double den = l.nrm.dot(outward);
+    if (l.sup.score < 0.7 * best.score || std::abs(den) < 0.5) continue;
+    if (const double offset = l.nrm.dot(l.a - mid) / den; offset > outermost) {
+      outermost = offset;
+      line_a = l.a;
+      line_n = l.nrm;
+    }
+  }
+  std::vector<Eigen::Vector2d> on;
+  for (int round = 0; round < 3; ++round) {  // refit on the line's own candidates until it settles
+    on.clear();
+    support(line_a, line_n, &on);
+    Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+    for (const Eigen::Vector2d& u : on) mean += u;
+    mean /= static_cast<double>(on.size());
+    Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();
+    for (const Eigen::Vector2d& u : on) cov += (u - mean) * (u - mean).transpose();
+    line_a = mean;
+    line_n = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(cov).eigenvectors().col(0);
+  }
+  Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+  for (const Eigen::Vector2d& u : on) {
+    const Eigen::Vector3d r = Eigen::Vector3d((u.x() - cam.cx) / cam.fx, (u.y() - cam.cy) / cam.fy, 1).normalized();
+    scatter += r * r.transpose();
+  }
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(scatter);
+  plane = es.eigenvectors().col(0);  // the smallest spread: the plane's normal
+  return true;
 }
 
 // Orients the tangent plane `n` (of edge `name`) so that the other edge's points lie on its
@@ -71,17 +197,11 @@ double axialCoordinate(const Eigen::Vector2d& px, const std::string& option, con
 }
 
 // Half the unrolled angle: where the angle between the surface normal and the ray to a camera at
-// distance d from the axis reaches max_incidence (in the plane perpendicular to the axis), i.e.
-// (d cos phi - r) / |C - P(phi)| = cos(max_incidence), decreasing in phi from 1 at phi = 0.
+// distance d from the axis reaches max_incidence, in the plane through the camera perpendicular
+// to the axis. In the triangle axis-camera-point the angle at the camera is asin(r sin(inc) / d)
+// (law of sines), and the angle at the axis is inc minus that.
 double halfAngle(double d, double r, double max_incidence) {
-  const double target = std::cos(max_incidence);
-  double lo = 0, hi = std::acos(r / d);
-  for (int i = 0; i < 60; ++i) {
-    const double phi = 0.5 * (lo + hi);
-    const double c = (d * std::cos(phi) - r) / std::sqrt(d * d - 2 * d * r * std::cos(phi) + r * r);
-    (c > target ? lo : hi) = phi;
-  }
-  return lo;
+  return max_incidence - std::asin(r * std::sin(max_incidence) / d);
 }
 
 }  // namespace
@@ -92,9 +212,11 @@ void CylinderOptions::check() const {
     refuse("--max-incidence: must be in [10, 85] degrees");
   if (!(std::isfinite(pixels_per_metre) && pixels_per_metre >= 0))
     refuse("--pixels-per-metre: must be >= 0 (0: the photo's resolution)");
+  if (!(std::isfinite(snap_px) && snap_px >= 0 && snap_px <= 20)) refuse("--snap: must be in [0, 20] px");
 }
 
-CylinderGeometry cylinderGeometry(const CylinderPoints& p, const Intrinsics& cam, const CylinderOptions& o) {
+CylinderGeometry cylinderGeometry(const cv::Mat& photo, const CylinderPoints& p, const Intrinsics& cam,
+                                  const CylinderOptions& o) {
   o.check();
   detail::checkInImage(p.left_edge[0], cam, "--left-edge");
   detail::checkInImage(p.left_edge[1], cam, "--left-edge");
@@ -109,6 +231,32 @@ CylinderGeometry cylinderGeometry(const CylinderPoints& p, const Intrinsics& cam
   Eigen::Vector3d n2 = edgePlane(p.right_edge, cam, kMinLabelPx / 2.0, "--right-edge");
   orientTowards(n1, "--left-edge", p.right_edge, "--right-edge", cam, px_angle);
   orientTowards(n2, "--right-edge", p.left_edge, "--left-edge", cam, px_angle);
+  CylinderGeometry g;
+  if (o.snap_px > 0) {
+    cv::Mat gray = photo, smooth;
+    if (photo.channels() == 3) cv::cvtColor(photo, gray, cv::COLOR_BGR2GRAY);
+    gray.convertTo(smooth, CV_32F);
+    cv::GaussianBlur(smooth, smooth, cv::Size(0, 0), 0.5);
+    const auto snap = [&](const std::array<Eigen::Vector2d, 2>& edge, const std::array<Eigen::Vector2d, 2>& other,
+                          Eigen::Vector3d& n) {
+      const Eigen::Vector3d clicked = n;
+      const Eigen::Vector2d along = (edge[1] - edge[0]).normalized();
+      Eigen::Vector2d outward(-along.y(), along.x());
+      if (outward.dot(edge[0] + edge[1] - other[0] - other[1]) < 0) outward = -outward;
+      const bool ok = snapEdge(smooth, edge, outward, cam, o.snap_px, n);
+      if (n.dot(clicked) < 0) n = -n;  // the clicked orientation: towards the can
+      return ok;
+    };
+    g.snapped = {snap(p.left_edge, p.right_edge, n1), snap(p.right_edge, p.left_edge, n2)};
+  }
+  for (int i = 0; i < 2; ++i) {  // the clicked points moved onto the planes used
+    const Eigen::Vector3d& n = i == 0 ? n1 : n2;
+    const auto& edge = i == 0 ? p.left_edge : p.right_edge;
+    for (int k = 0; k < 2; ++k) {
+      const Eigen::Vector3d r = rayOf(cam, edge[k]), on = r - n.dot(r) * n;
+      g.edges_px[i][k] = cam.project(on);
+    }
+  }
   const double c = n1.dot(n2);
   if (1 + c < 1e-9) refuse("--left-edge, --right-edge: the edges do not determine an axis");
   // The axis point nearest the camera centre: in the span of n1, n2 (perpendicular to the axis),
@@ -133,7 +281,6 @@ CylinderGeometry cylinderGeometry(const CylinderPoints& p, const Intrinsics& cam
     refuse("--label-top, --label-bottom: the label is " + yamlNumber(height * ppm) + " px high, less than " +
            std::to_string(kMinLabelPx) + " px");
 
-  CylinderGeometry g;
   g.axis_distance_m = d;
   g.half_angle_rad = halfAngle(d, r, o.max_incidence_rad);
   const double width = 2 * g.half_angle_rad * r;
@@ -202,11 +349,11 @@ void writeCylinderDefinition(const std::string& yaml_path, const std::string& na
   detail::finishDefinition(out, yaml_path);
 }
 
-cv::Mat drawCylinder(const cv::Mat& photo, const CylinderGeometry& g, const CylinderPoints& p, const Intrinsics& cam) {
+cv::Mat drawCylinder(const cv::Mat& photo, const CylinderGeometry& g, const Intrinsics& cam) {
   cv::Mat img = detail::checkCanvas(photo);
   const int thick = detail::checkThickness(img);
   const auto pt = [](const Eigen::Vector2d& q) { return cv::Point(cvRound(q.x()), cvRound(q.y())); };
-  for (const auto& e : {p.left_edge, p.right_edge}) {  // each edge line across the image
+  for (const auto& e : g.edges_px) {  // each edge line across the image
     const Eigen::Vector2d dir = (e[1] - e[0]).normalized() * (img.cols + img.rows);
     cv::Point a = pt(e[0] - dir), b = pt(e[0] + dir);
     if (cv::clipLine(img.size(), a, b)) cv::line(img, a, b, cv::Scalar(255, 0, 255), thick, cv::LINE_AA);
