@@ -103,7 +103,7 @@ int makeReference(int argc, char** argv) {
   std::string photo_file, camera_file, output, name, check, corners, size, family, region;
   std::string left_edge, right_edge, label_top, label_bottom, label_image, box_size;
   std::vector<std::string> faces;
-  double tag_size = 0, radius = 0, max_incidence_deg = 65, pixels_per_metre = 0;
+  double tag_size = 0, radius = 0, max_incidence_deg = 65, pixels_per_metre = 0, snap_px = 4;
   int tag_id = -1;
   bool cylinder = false, views = false;
   auto* image = app.add_option("--image", photo_file, "the photo (the planar modes' reference image)");
@@ -132,6 +132,9 @@ int makeReference(int argc, char** argv) {
   auto* pp = app.add_option("--pixels-per-metre", pixels_per_metre,
                             "label resolution on the surface (px/m; 0: the photo's at the can)")
                  ->check(tool::Finite(0, 1e6));
+  auto* sn = app.add_option("--snap", snap_px,
+                            "move each clicked edge to the straight photo edge within this many px (0: as clicked)")
+                 ->check(tool::Finite(0, 20));
   auto* vw = app.add_flag("--views", views, "a box: join the faces' definitions (needs --box-size, --face)");
   auto* bs = app.add_option("--box-size", box_size, "W,H,D: the box's width, height, depth (metres)");
   auto* fc = app.add_option("--face", faces, "NAME=FILE: a face's planar definition (front, back, left, right, "
@@ -145,7 +148,7 @@ int makeReference(int argc, char** argv) {
     cy->needs(o);
     o->needs(cy);
   }
-  for (CLI::Option* o : {li, mi, pp}) o->needs(cy);
+  for (CLI::Option* o : {li, mi, pp, sn}) o->needs(cy);
   for (CLI::Option* o : {c, a, ti, rg}) cy->excludes(o);
   for (CLI::Option* o : {bs, fc}) {
     vw->needs(o);
@@ -192,6 +195,7 @@ int makeReference(int argc, char** argv) {
       o.radius_m = radius;
       o.max_incidence_rad = max_incidence_deg * M_PI / 180;
       o.pixels_per_metre = pixels_per_metre;
+      o.snap_px = snap_px;
       const reference::CylinderGeometry g = reference::cylinderGeometry(photo, pts, cam, o);
       tool::writeImage(label_image, reference::unrollLabel(photo, cam, g));
       reference::writeCylinderDefinition(output, name, label_image, g);
