@@ -21,6 +21,8 @@ namespace {
 constexpr double kDeg = M_PI / 180.0;
 constexpr int kMinLabelPx = 16;      // a smaller unrolled label has too few features to detect
 constexpr int kMaxLabelPx = 16384;   // per side
+constexpr double kMaxLabelPixels = 1 << 25;   // the project's image limit (core/image_io.h)
+constexpr double kMaxSamples = 1 << 26;       // label pixels x sub-samples: the sampling maps' size
 constexpr int kMaxSupersampling = 8; // label pixels covering more photo pixels are box-averaged over 8 x 8
 constexpr size_t kMaxPeaks = 4;      // edge candidates per sample of a silhouette edge
 
@@ -288,9 +290,9 @@ CylinderGeometry cylinderGeometry(const cv::Mat& photo, const CylinderPoints& p,
   if (W < kMinLabelPx)
     refuse("--left-edge, --right-edge: the unrolled part is " + std::to_string(W) + " px wide, less than " +
            std::to_string(kMinLabelPx) + " px: the can is too small in the photo");
-  if (W > kMaxLabelPx || H > kMaxLabelPx)
+  if (W > kMaxLabelPx || H > kMaxLabelPx || static_cast<double>(W) * H > kMaxLabelPixels)
     refuse("--pixels-per-metre: the label would be " + std::to_string(W) + "x" + std::to_string(H) +
-           " px, more than " + std::to_string(kMaxLabelPx) + " px a side");
+           " px, more than " + std::to_string(kMaxLabelPx) + " px a side or 2^25 pixels");
   g.label = CylinderLabel{r, width, height, static_cast<int>(W), static_cast<int>(H)};
   Eigen::Matrix3d R;
   R.col(1) = a;
@@ -311,7 +313,9 @@ cv::Mat unrollLabel(const cv::Mat& photo, const Intrinsics& cam, const CylinderG
       footprint = std::max({footprint, (photoPx(u + 0.5, v) - photoPx(u - 0.5, v)).norm(),
                             (photoPx(u, v + 0.5) - photoPx(u, v - 0.5)).norm()});
     }
-  const int S = std::min(kMaxSupersampling, static_cast<int>(std::ceil(footprint - 1e-6)));
+  const double pixels = static_cast<double>(L.image_width) * L.image_height;
+  const int S = std::max(1, std::min({kMaxSupersampling, static_cast<int>(std::ceil(footprint - 1e-6)),
+                                      static_cast<int>(std::sqrt(kMaxSamples / pixels))}));
   cv::Mat map_x(L.image_height * S, L.image_width * S, CV_32FC1), map_y(map_x.size(), CV_32FC1);
   for (int i = 0; i < map_x.rows; ++i)
     for (int j = 0; j < map_x.cols; ++j) {

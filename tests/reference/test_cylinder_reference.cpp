@@ -299,6 +299,9 @@ TEST(MakeReferenceCylinder, BadPointsAndRadiiAreRefusedWithOneLine) {
   EXPECT_EQ(geometry(good, bad), "--radius: must be a positive number of metres");
   bad.radius_m = std::nan("");
   EXPECT_EQ(geometry(good, bad), "--radius: must be a positive number of metres");
+  bad = o;
+  bad.pixels_per_metre = 1e6;  // a 0.07 x 0.13 m label at 1 px per micrometre
+  EXPECT_EQ(geometry(good, bad).substr(0, 37), "--pixels-per-metre: the label would b");
   reference::CylinderPoints p = good;
   p.left_edge[1] = {700, 100};
   EXPECT_EQ(geometry(p, o), "--left-edge: (700, 100) is outside the 640x480 image");
