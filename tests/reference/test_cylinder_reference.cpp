@@ -252,6 +252,55 @@ TEST(MakeReferenceCylinder, TheUnrolledLabelMatchesTheTrueLabelAndItsSizeTheSurf
   EXPECT_LE(tilted_misses, 2);
 }
 
+// The definition as the simulator reads it (core/cylinder.h's frame and label geometry): the can
+// rendered in a new view with the unrolled label and the definition's frame, placed where the
+// photo's pose puts it on the true can, looks like the true can there.
+TEST(MakeReferenceCylinder, TheDefinitionRenderedInANewViewLooksLikeTheTrueCan) {
+  const Intrinsics cam = canCamera();
+  const Can can = makeCan("photos/aerial_town.jpg", 0.045, 300, kTilted);
+  const cv::Mat photo = photograph(cam, can, 1);
+  reference::CylinderOptions o;
+  o.radius_m = 0.045;
+  const reference::CylinderGeometry g = reference::cylinderGeometry(photo, clicks(cam, can, 1), cam, o);
+  const std::string yaml = (scratch() / "view.yaml").string(), png = (scratch() / "view_label.png").string();
+  ASSERT_TRUE(cv::imwrite(png, reference::unrollLabel(photo, cam, g)));
+  reference::writeCylinderDefinition(yaml, "view", png, g);
+  const detector::ObjectModel m = detector::loadObjectDefinition(yaml);
+  ASSERT_TRUE(m.isCylinder());
+  // Another camera pose: nearer, turned 0.35 rad about the can's axis.
+  const Pose cMo_new = Pose::fromRotationVector({0.1, 0.35, -0.05}, {0.01, -0.01, 0.3});
+  const Pose trueMdef = can.cyl.cMo.inverse() * g.cMo;
+  sim::TexturedCylinder truth = can.cyl, defined;
+  truth.cMo = cMo_new;
+  truth.side_gray = truth.cap_gray = 0;
+  defined.label = m.reference;
+  defined.radius_m = m.cylinder->radius_m;
+  defined.label_width_m = m.cylinder->width_m;
+  defined.label_height_m = m.cylinder->height_m;
+  defined.height_m = m.cylinder->height_m;
+  defined.side_gray = defined.cap_gray = 0;
+  defined.cMo = cMo_new * trueMdef;
+  sim::RenderOptions black;
+  black.background_gray = 0;
+  const cv::Mat a = sim::renderView(cam, {}, {truth}, cv::Mat(), black);
+  const cv::Mat b = sim::renderView(cam, {}, {defined}, cv::Mat(), black);
+  sim::TexturedCylinder coverage = defined;  // where the defined label is seen
+  coverage.label = cv::Mat(m.reference.size(), CV_8UC1, cv::Scalar(255));
+  cv::Mat mask = sim::renderView(cam, {}, {coverage}, cv::Mat(), black) > 250;
+  cv::erode(mask, mask, cv::Mat(), cv::Point(-1, -1), 3);  // off the silhouette and the label's border
+  const int n = cv::countNonZero(mask);
+  ASSERT_GT(n, 5000);
+  cv::Mat fa, fb;
+  a.convertTo(fa, CV_64F);
+  b.convertTo(fb, CV_64F);
+  cv::Scalar ma, sa, mb, sb;
+  cv::meanStdDev(fa, ma, sa, mask);
+  cv::meanStdDev(fb, mb, sb, mask);
+  const double corr = cv::mean((fa - ma[0]).mul(fb - mb[0]), mask)[0] / (sa[0] * sb[0]);
+  std::printf("[ measured ] the definition re-rendered in a new view: %d px, NCC %.3f with the true can\n", n, corr);
+  EXPECT_GE(corr, 0.9);
+}
+
 TEST(MakeReferenceCylinder, WithoutNoiseOrSnappingTheGeometryIsExact) {
   // Exact clicks, edges taken as given: the unrolled label's metric size is the surface's to
   // 0.05 %, and the written definition loads with that geometry.
