@@ -197,12 +197,16 @@ int makeReference(int argc, char** argv) {
       o.pixels_per_metre = pixels_per_metre;
       o.snap_px = snap_px;
       const reference::CylinderGeometry g = reference::cylinderGeometry(photo, pts, cam, o);
-      tool::writeImage(label_image, reference::unrollLabel(photo, cam, g));
+      const cv::Mat label = reference::unrollLabel(photo, cam, g);
+      if (const fs::path dir = fs::path(label_image).parent_path(); !dir.empty()) tool::makeOutputDir(dir.string());
+      tool::writeImage(label_image, label);
       reference::writeCylinderDefinition(output, name, label_image, g);
       tool::writeImage(check, reference::drawCylinder(photo, g, cam));
       std::cerr << "make_reference: " << output << " (label " << label_image << ", " << g.label.image_width << "x"
                 << g.label.image_height << " px, " << g.label.width_m << " x " << g.label.height_m
-                << " m, axis at " << g.axis_distance_m << " m); check " << check << "\n";
+                << " m, axis at " << g.axis_distance_m << " m, edges "
+                << (g.snapped[0] ? "snapped" : "as clicked") << " / " << (g.snapped[1] ? "snapped" : "as clicked")
+                << "); check " << check << "\n";
       return 0;
     }
     reference::Reference ref;
