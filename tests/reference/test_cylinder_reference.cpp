@@ -301,6 +301,42 @@ TEST(MakeReferenceCylinder, TheDefinitionRenderedInANewViewLooksLikeTheTrueCan) 
   EXPECT_GE(corr, 0.9);
 }
 
+// A wider sweep, with a label and a pose the test above does not use (butterfly_on_leaf; a can
+// turned 50 deg about the vertical, 0.5 m away), radii 3.3-4.8 cm, six seeds: at least 90 % of
+// the 72 cans meet the bars. The misses are the weak case of docs/tools/make_reference.md
+// (a low-contrast stretch of an edge with a straight label edge just inside it).
+TEST(MakeReferenceCylinder, AWiderSweepMeetsTheBarsNineTimesInTen) {
+  const Intrinsics cam = canCamera();
+  const Pose turned = Pose::fromRotationVector({-0.18, 0.9, 0.0}, {0.0, 0.0, 0.5});
+  const Pose poses[] = {kUpright, kTilted, turned};
+  const char* const photos[] = {"photos/hotel_facade.jpg", "photos/aerial_town.jpg", "photos/fruits_closeup.jpg",
+                                "photos/butterfly_on_leaf.jpg"};
+  int meets = 0, cases = 0;
+  for (const Pose& pose : poses)
+    for (const char* photo_name : photos)
+      for (uint64_t seed = 1; seed <= 6; ++seed) {
+        const double radius = 0.03 + 0.003 * static_cast<double>(seed);
+        const cv::Mat full = refgrasp::testing::loadMedia(photo_name);
+        const Can can = makeCan(photo_name, radius, std::min(full.rows, full.cols / 2), pose);
+        const cv::Mat photo = photograph(cam, can, seed + 100);
+        reference::CylinderOptions o;
+        o.radius_m = radius;
+        const reference::CylinderPoints clicked = clicks(cam, can, seed + 100);
+        const reference::CylinderGeometry g = reference::cylinderGeometry(photo, clicked, cam, o);
+        const Accuracy acc = measure(cam, can, clicked, g, reference::unrollLabel(photo, cam, g));
+        ++cases;
+        if (acc.ncc >= 0.9 && std::abs(acc.width_error) < 0.02 && std::abs(acc.height_error) < 0.02) {
+          ++meets;
+        } else {
+          std::printf("[ measured ] miss: %s pose %d r %.3f seed %d: NCC %.3f, width %+.2f %%, height %+.2f %%\n",
+                      photo_name, static_cast<int>(&pose - poses), radius, static_cast<int>(seed), acc.ncc,
+                      100 * acc.width_error, 100 * acc.height_error);
+        }
+      }
+  std::printf("[ measured ] wider sweep: %d of %d cans meet NCC >= 0.9 and 2 %%\n", meets, cases);
+  EXPECT_GE(10 * meets, 9 * cases);
+}
+
 TEST(MakeReferenceCylinder, WithoutNoiseOrSnappingTheGeometryIsExact) {
   // Exact clicks, edges taken as given: the unrolled label's metric size is the surface's to
   // 0.05 %, and the written definition loads with that geometry.
