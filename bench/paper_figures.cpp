@@ -64,13 +64,7 @@ int main(int argc, char** argv) try {
     }
   }
   bench::requireFolder(kTool, "--output", output);
-  if (quick) {
-    f7.distances_m = {0.5, 2.0};
-    f7.turns_deg = {30};
-    f7.box_turns_deg = {45};
-    f7.frames = 2;
-    f8.duration_s = 3;
-  }
+  if (quick) eval::makeQuick(&f7, &f8);
   if (frames > 0) f7.frames = static_cast<int>(frames);
   if (duration > 0) f8.duration_s = static_cast<double>(duration);
   cv::setNumThreads(1);  // parallel over views instead

@@ -191,10 +191,12 @@ PaperObject planar(const std::string& name, const std::string& what, const cv::M
                    const std::vector<double>& turns) {
   PaperObject o;
   o.name = name;
-  o.description = what;
+  const double h = width_m * tex.rows / tex.cols;
+  char size[64];
+  std::snprintf(size, sizeof size, ", %.1f x %.1f cm", 100 * width_m, 100 * h);
+  o.description = what + size;
   o.shape = PaperShape::kPlanar;
   o.model = detector::textureObject(name, tex, width_m);
-  const double h = width_m * tex.rows / tex.cols;
   o.faces = {face(tex, width_m, h, Pose())};
   o.height_m = h;
   o.turns_deg = turns;
@@ -226,17 +228,17 @@ PaperObject cylinder(const std::string& name, const std::string& what, const cv:
 
 std::vector<PaperObject> paperObjects(const std::vector<double>& turns, const std::vector<double>& box_turns) {
   std::vector<PaperObject> out;
-  out.push_back(planar("A_cookie_box", "photos/cookie_box.png, 10 x 6.9 cm card", testing::loadMedia("photos/cookie_box.png"),
+  out.push_back(planar("A_cookie_box", "photos/cookie_box.png, a card", testing::loadMedia("photos/cookie_box.png"),
                        0.10, turns));
-  out.push_back(planar("B_hotel", "photos/hotel_facade.jpg (middle 60 %), 9 x 9.3 cm card",
+  out.push_back(planar("B_hotel", "photos/hotel_facade.jpg (middle 60 % x 85 %), a card",
                        photoCrop("photos/hotel_facade.jpg", 0.2, 0.1, 0.8, 0.95), 0.09, turns));
-  out.push_back(planar("C_town", "photos/aerial_town.jpg (left half), 7 x 10.5 cm card",
+  out.push_back(planar("C_town", "photos/aerial_town.jpg (left half), a card",
                        photoCrop("photos/aerial_town.jpg", 0, 0, 0.5, 1), 0.07, turns));
   {
     // A box (8 x 12 x 6 cm) defined by its front face, the right half of the aerial photo; its
     // other faces are the project's cardboard textures.
     const cv::Mat front = photoCrop("photos/aerial_town.jpg", 0.5, 0, 1, 1);
-    PaperObject o = planar("D_town_box", "photos/aerial_town.jpg (right half) on the front of an 8 x 12 x 6 cm box",
+    PaperObject o = planar("D_town_box", "photos/aerial_town.jpg (right half) on the front of a box 6 cm deep",
                            front, 0.08, box_turns);
     o.shape = PaperShape::kBox;
     const Eigen::Vector3d size(0.08, 0.12, 0.06);
@@ -290,6 +292,14 @@ void Fig8Options::check() const {
   need(std::isfinite(frame_rate_hz) && frame_rate_hz >= 0.5 && frame_rate_hz <= 48, "Fig8Options", "frame_rate_hz",
        "must be in [0.5, 48] (the camera's rate)");
   need(std::isfinite(noise_sigma) && noise_sigma >= 0 && noise_sigma <= 50, "Fig8Options", "noise_sigma", "must be in [0, 50]");
+}
+
+void makeQuick(Fig7Options* fig7, Fig8Options* fig8) {
+  fig7->distances_m = {0.5, 2.0};
+  fig7->turns_deg = {30};
+  fig7->box_turns_deg = {45};
+  fig7->frames = 2;
+  fig8->duration_s = 3;
 }
 
 namespace {

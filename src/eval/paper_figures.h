@@ -151,6 +151,10 @@ struct Fig8Result {
   std::vector<int> confirmedTotals() const;
 };
 
+/// paper_figures --quick: 2 distances (0.5, 2 m), one turn (30 deg; the box 45 deg), 2 frames per
+/// view, 3 s of driving: a smoke test of the whole pipeline in seconds, not the figures.
+void makeQuick(Fig7Options* fig7, Fig8Options* fig8);
+
 /// Runs Fig. 8; progress(done, total) after each frame.
 Fig8Result runFig8(const Fig8Options& opt, const std::function<void(int, int)>& progress = {});
 
