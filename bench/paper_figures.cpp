@@ -63,10 +63,12 @@ int main(int argc, char** argv) try {
       bench::rejectArgument(kTool, a, {"--output", "--frames", "--threads", "--duration"});
     }
   }
-  bench::requireFolder(kTool, "--output", output);
   if (quick) eval::makeQuick(&f7, &f8);
   if (frames > 0) f7.frames = static_cast<int>(frames);
   if (duration > 0) f8.duration_s = static_cast<double>(duration);
+  f7.check();
+  f8.check();
+  bench::requireFolder(kTool, "--output", output);
   cv::setNumThreads(1);  // parallel over views instead
 
   const auto t0 = std::chrono::steady_clock::now();
