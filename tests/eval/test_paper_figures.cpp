@@ -168,16 +168,18 @@ TEST(PaperFigures, TheQuickRunWritesThePageTablesAndPlots) {
     EXPECT_NE(md.find(s), std::string::npos) << s;
   // Nothing dated in the generated page (tests/docs): no date, no issue number.
   EXPECT_FALSE(std::regex_search(md, std::regex("20[0-9]{2}-[0-9]{2}-[0-9]{2}")));
-  // Fig. 7: per object, 2 rows (planar) or 3 (round) in each of the three tables (the page adds
-  // the object's line in the set-up table and in the Fig. 8 table); the success and std tables' rows have the object, the
-  // method and one cell per distance, the summary's six cells.
+  // Fig. 7: per object, 2 rows (planar) or 3 (round) in each of the four tables (the page adds
+  // the object's line in the set-up table and in the Fig. 8 table); the success and std tables'
+  // rows have the object, the method and one cell per distance, the by-turn table's three cells,
+  // the summary's six.
   const std::string tables = fig7Tables(r7);
   EXPECT_NE(md.find(tables), std::string::npos);
   for (const PaperObject& o : r7.objects) {
     const size_t methods = o.round() ? 3 : 2;
     const std::vector<std::string> rows = tableRows(tables, o.name);
-    ASSERT_EQ(rows.size(), 3 * methods) << o.name;
-    for (size_t k = 0; k < rows.size(); ++k) EXPECT_EQ(cells(rows[k]), k < 2 * methods ? 2 + 2 : 6) << rows[k];
+    ASSERT_EQ(rows.size(), 4 * methods) << o.name;
+    for (size_t k = 0; k < rows.size(); ++k)
+      EXPECT_EQ(cells(rows[k]), k < 2 * methods ? 2 + 2 : k < 3 * methods ? 3 : 6) << rows[k];
     EXPECT_EQ(tableRows(md, o.name).size(), rows.size() + 2);
     // Fig. 8: one row per object: six columns, 48 frames.
     const std::vector<std::string> fp = tableRows(fig8Table(r8), o.name);
@@ -193,5 +195,13 @@ TEST(PaperFigures, TheQuickRunWritesThePageTablesAndPlots) {
     EXPECT_LE(p, s);
   }
   EXPECT_EQ(checked, 14 * 2);  // 14 object-method rows x 2 distances
+  std::regex by_turn(R"(deg: (\d+) \((\d+)\))");
+  checked = 0;
+  for (std::sregex_iterator it(md.begin(), md.end(), by_turn), end; it != end; ++it, ++checked) {
+    const int s = std::stoi((*it)[1]), p = std::stoi((*it)[2]);
+    EXPECT_LE(s, 100);
+    EXPECT_LE(p, s);
+  }
+  EXPECT_EQ(checked, 14);  // 14 object-method rows x 1 turn
   fs::remove_all(dir);
 }
