@@ -250,9 +250,9 @@ cv::Mat fig7Views(const Fig7Result& r, double distance_m) {
 }
 
 cv::Mat fig8Plot(const Fig8Result& r) {
-  const int W = 1100, strip = 46, top = 34;
+  const int W = 1100, strip = 46, top = 34, motion = 90;
   const int n = static_cast<int>(r.names.size());
-  cv::Mat img(top + n * strip + 40, W, CV_8UC3, cv::Scalar(255, 255, 255));
+  cv::Mat img(top + n * strip + motion + 40, W, CV_8UC3, cv::Scalar(255, 255, 255));
   text(img, "Fig. 8 reproduced: detections per object over time, no object in the room (red: raw, black: confirmed)",
        {10, 20}, 0.5);
   const int left = 150, right = W - 20;
@@ -270,7 +270,20 @@ cv::Mat fig8Plot(const Fig8Result& r) {
       if (f.confirmed[static_cast<size_t>(i)]) cv::line(img, {X(f.t_s), ym + 1}, {X(f.t_s), y0 + strip - 4}, kBlack, 2);
     }
   }
-  const int yb = top + n * strip;
+  // The head's pan and tilt (the robot looking around) under the strips, -1.6..1.6 rad.
+  const int ym0 = top + n * strip + 4, ym1 = ym0 + motion - 8;
+  auto Yr = [&](double a) { return static_cast<int>(std::lround(ym1 - (std::clamp(a, -1.6, 1.6) + 1.6) / 3.2 * (ym1 - ym0))); };
+  cv::rectangle(img, {left, ym0}, {right, ym1}, kGrid, 1);
+  cv::line(img, {left, Yr(0)}, {right, Yr(0)}, kGrid, 1);
+  text(img, "head, rad", {8, ym0 + 24}, 0.42);
+  text(img, "pan", {8, ym0 + 42}, 0.38, cv::Scalar(200, 90, 20));
+  text(img, "tilt", {48, ym0 + 42}, 0.38, cv::Scalar(20, 140, 240));
+  for (size_t k = 1; k < r.frames.size(); ++k) {
+    const Fig8Frame &a = r.frames[k - 1], &b = r.frames[k];
+    cv::line(img, {X(a.t_s), Yr(a.pan_rad)}, {X(b.t_s), Yr(b.pan_rad)}, cv::Scalar(200, 90, 20), 2, cv::LINE_AA);
+    cv::line(img, {X(a.t_s), Yr(a.tilt_rad)}, {X(b.t_s), Yr(b.tilt_rad)}, cv::Scalar(20, 140, 240), 2, cv::LINE_AA);
+  }
+  const int yb = ym1 + 4;
   for (double t = 0; t <= T + 1e-9; t += 10) {
     cv::line(img, {X(t), yb}, {X(t), yb + 4}, kBlack, 1);
     text(img, fmt("%g", t), {X(t) - 8, yb + 18}, 0.35);
@@ -279,71 +292,78 @@ cv::Mat fig8Plot(const Fig8Result& r) {
   return img;
 }
 
+namespace {
+
+// One table row per object and method: "| object | method", then cells(object, method) writes
+// the rest of the row (each cell as " | x"), then " |".
+template <class F>
+void objectMethodRows(const Fig7Result& r, std::ostringstream& o, F cells) {
+  for (size_t oi = 0; oi < r.objects.size(); ++oi)
+    for (Fig7Method m : fig7Methods(r.objects[oi])) {
+      o << "| " << r.objects[oi].name << " | " << fig7MethodName(m, r.objects[oi].round());
+      cells(static_cast<int>(oi), m);
+      o << " |\n";
+    }
+}
+
+}  // namespace
+
 std::string fig7Tables(const Fig7Result& r) {
   std::ostringstream o;
   o << "Success rate, % of the frames (in brackets: pose ok, < 2 deg and < 2 % of the distance), by distance "
        "from the robot (m):\n\n"
     << distanceHeader(r, "object | method");
-  for (size_t oi = 0; oi < r.objects.size(); ++oi)
-    for (Fig7Method m : fig7Methods(r.objects[oi])) {
-      o << "| " << r.objects[oi].name << " | " << fig7MethodName(m, r.objects[oi].round());
-      for (const Fig7Row* row : r.rowsOf(static_cast<int>(oi), m))
-        o << " | " << fmt("%.0f", 100.0 * row->success / std::max(1, row->frames)) << " ("
-          << fmt("%.0f", 100.0 * row->pose_ok / std::max(1, row->frames)) << ")";
-      o << " |\n";
-    }
+  objectMethodRows(r, o, [&](int oi, Fig7Method m) {
+    for (const Fig7Row* row : r.rowsOf(oi, m))
+      o << " | " << fmt("%.0f", 100.0 * row->success / std::max(1, row->frames)) << " ("
+        << fmt("%.0f", 100.0 * row->pose_ok / std::max(1, row->frames)) << ")";
+  });
   o << "\nStandard deviation of the estimated position x / y / z (camera frame, mm) over the successful "
        "frames of a view, root mean square over the turns (-: fewer than 2 successes in every view):\n\n"
     << distanceHeader(r, "object | method");
-  for (size_t oi = 0; oi < r.objects.size(); ++oi)
-    for (Fig7Method m : fig7Methods(r.objects[oi])) {
-      o << "| " << r.objects[oi].name << " | " << fig7MethodName(m, r.objects[oi].round());
-      for (const Fig7Row* row : r.rowsOf(static_cast<int>(oi), m)) {
-        if (!std::isfinite(row->std_m.z())) {
-          o << " | -";
-          continue;
-        }
-        o << " | " << fmt("%.1f", 1e3 * row->std_m.x()) << " / " << fmt("%.1f", 1e3 * row->std_m.y()) << " / "
-          << fmt("%.1f", 1e3 * row->std_m.z());
+  objectMethodRows(r, o, [&](int oi, Fig7Method m) {
+    for (const Fig7Row* row : r.rowsOf(oi, m)) {
+      if (!std::isfinite(row->std_m.z())) {
+        o << " | -";
+        continue;
       }
-      o << " |\n";
+      o << " | " << fmt("%.1f", 1e3 * row->std_m.x()) << " / " << fmt("%.1f", 1e3 * row->std_m.y()) << " / "
+        << fmt("%.1f", 1e3 * row->std_m.z());
     }
+  });
   o << "\nSuccess by turn over all distances, % of the frames (pose ok):\n\n"
        "| object | method | success by turn |\n|---|---|---|\n";
-  for (size_t oi = 0; oi < r.objects.size(); ++oi)
-    for (Fig7Method m : fig7Methods(r.objects[oi])) {
-      o << "| " << r.objects[oi].name << " | " << fig7MethodName(m, r.objects[oi].round()) << " |";
-      for (size_t ti = 0; ti < r.objects[oi].turns_deg.size(); ++ti) {
-        int n = 0, s = 0, p = 0;
-        for (const Fig7Cell& c : r.cells) {
-          if (c.object != static_cast<int>(oi) || c.turn != static_cast<int>(ti)) continue;
-          for (const Fig7Outcome& f : c.by_method[static_cast<size_t>(m)]) {
-            ++n;
-            s += f.success;
-            p += f.pose_ok;
-          }
+  objectMethodRows(r, o, [&](int oi, Fig7Method m) {
+    o << " |";
+    const std::vector<double>& turns = r.objects[static_cast<size_t>(oi)].turns_deg;
+    for (size_t ti = 0; ti < turns.size(); ++ti) {
+      int n = 0, s = 0, p = 0;
+      for (const Fig7Cell& c : r.cells) {
+        if (c.object != oi || c.turn != static_cast<int>(ti)) continue;
+        for (const Fig7Outcome& f : c.by_method[static_cast<size_t>(m)]) {
+          ++n;
+          s += f.success;
+          p += f.pose_ok;
         }
-        o << (ti ? "," : "") << " " << fmt("%g deg: ", r.objects[oi].turns_deg[ti]) << fmt("%.0f", n ? 100.0 * s / n : 0)
-          << " (" << fmt("%.0f", n ? 100.0 * p / n : 0) << ")";
       }
-      o << " |\n";
+      o << (ti ? "," : "") << " " << fmt("%g deg: ", turns[ti]) << fmt("%.0f", n ? 100.0 * s / n : 0) << " ("
+        << fmt("%.0f", n ? 100.0 * p / n : 0) << ")";
     }
+  });
   o << "\nSummary per object and method: success over all distances and turns, the range (largest distance up "
        "to which every distance has >= 50 % success), reports that were not a success (wrong pose), and other "
        "objects reported in its frames (false positives; refgrasp rows only):\n\n"
        "| object | method | success, % | range, m | wrong | other objects reported |\n|---|---|---|---|---|---|\n";
-  for (size_t oi = 0; oi < r.objects.size(); ++oi)
-    for (Fig7Method m : fig7Methods(r.objects[oi])) {
-      const auto rows = r.rowsOf(static_cast<int>(oi), m);
-      int wrong = 0, others = 0;
-      for (const Fig7Row* row : rows) {
-        wrong += row->wrong;
-        others += row->others;
-      }
-      o << "| " << r.objects[oi].name << " | " << fig7MethodName(m, r.objects[oi].round()) << " | "
-        << fmt("%.1f", meanSuccess(rows)) << " | " << fmt("%.2f", rangeOf(rows)) << " | " << wrong << " | "
-        << (m == Fig7Method::kClassic ? std::string("n/a") : std::to_string(others)) << " |\n";
+  objectMethodRows(r, o, [&](int oi, Fig7Method m) {
+    const auto rows = r.rowsOf(oi, m);
+    int wrong = 0, others = 0;
+    for (const Fig7Row* row : rows) {
+      wrong += row->wrong;
+      others += row->others;
     }
+    o << " | " << fmt("%.1f", meanSuccess(rows)) << " | " << fmt("%.2f", rangeOf(rows)) << " | " << wrong << " | "
+      << (m == Fig7Method::kClassic ? std::string("n/a") : std::to_string(others));
+  });
   return o.str();
 }
 
