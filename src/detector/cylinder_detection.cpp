@@ -7,6 +7,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/geometry.h"
+#include "detector/cylinder_dense.h"
 #include "detector/homography.h"
 #include "detector/sanity.h"
 
@@ -94,6 +95,20 @@ double residualPx(const Pose& cMo, const Eigen::Matrix3d& K, const Eigen::Vector
   const Eigen::Vector3d Xc = cMo.R * X + cMo.t;
   if (!(Xc.z() > 1e-9)) return std::numeric_limits<double>::infinity();
   return (projectPinhole(K, Xc) - y).norm();
+}
+
+// Median and RMS reprojection error (px) of the pairs at cMo; infinite without pairs.
+double medianResidual(const Pairs& p, const Pose& cMo, const Eigen::Matrix3d& K) {
+  std::vector<double> r;
+  for (int i = 0; i < p.size(); ++i) r.push_back(residualPx(cMo, K, p.X[static_cast<size_t>(i)], p.y[static_cast<size_t>(i)]));
+  if (r.empty()) return std::numeric_limits<double>::infinity();
+  std::nth_element(r.begin(), r.begin() + static_cast<long>(r.size() / 2), r.end());
+  return r[r.size() / 2];
+}
+double rmsResidual(const Pairs& p, const Pose& cMo, const Eigen::Matrix3d& K) {
+  double s = 0;
+  for (int i = 0; i < p.size(); ++i) s += std::pow(residualPx(cMo, K, p.X[static_cast<size_t>(i)], p.y[static_cast<size_t>(i)]), 2);
+  return p.size() > 0 ? std::sqrt(s / p.size()) : std::numeric_limits<double>::infinity();
 }
 
 // Huber LM over the pairs from `start`, then again over those within the inlier bound of the
@@ -441,7 +456,13 @@ void registerCylinder(RegisteredObject* obj, const DetectorOptions& opt) {
 }
 
 MatchResult matchRegistered(const RegisteredObject& obj, const Features& scene, const GridIndex& grid,
-                            const MatchOptions& opt) {
+                            const MatchOptions& options) {
+  if (!obj.cylinder_model) return matchObjectUnchecked(obj.index, scene, grid, options);
+  // The inliers' spread is measured against the part of the label that can be seen at once (at
+  // most half the circumference), not the whole label.
+  const CylinderLabel& L = *obj.model.cylinder;
+  MatchOptions opt = options;
+  opt.min_inlier_spread *= std::min(1.0, kPi * L.radius_m / L.width_m);
   MatchResult m = matchObjectUnchecked(obj.index, scene, grid, opt);
   if (!obj.seam_index) return m;
   MatchResult s = matchObjectUnchecked(*obj.seam_index, scene, grid, opt);
@@ -514,16 +535,23 @@ Verdict verifyCylinderCandidate(const CandidateContext& ctx, const MatchCandidat
       pairs = std::move(more);
     }
   }
+  // The photometric refinement replaces the features' pose when the label agrees better with
+  // the scene there and the features still fit it.
+  if (ctx.scene.image.type() == CV_8UC1) {
+    const CylinderDenseResult dense =
+        refineCylinderPoseDense(L, obj.pyramid, ctx.scene.image, ctx.camera, pose.cMo, kVerifyFacingCos);
+    if (dense.ok && dense.correlation_after > dense.correlation_before &&
+        medianResidual(pairs, dense.cMo, K) <= std::max(kMinInlierPx, 2 * medianResidual(pairs, pose.cMo, K))) {
+      pose.cMo = dense.cMo;
+      pose.rms_px = rmsResidual(pairs, dense.cMo, K);
+    }
+  }
   d.cMo = pose.cMo;
   d.pose_rms_px = pose.rms_px;
   d.inliers = pairs.size();
   // Step 4: the matcher's band must lie where the pose puts it (a pose caught in a wrong
   // minimum, or pulled by the expansion onto look-alikes, does not explain it).
-  std::vector<double> res;
-  for (int i = 0; i < matched_pairs.size(); ++i)
-    res.push_back(residualPx(pose.cMo, K, matched_pairs.X[static_cast<size_t>(i)], matched_pairs.y[static_cast<size_t>(i)]));
-  std::nth_element(res.begin(), res.begin() + static_cast<long>(res.size() / 2), res.end());
-  if (res.empty() || !(res[res.size() / 2] <= opt.match.ransac_reproj_px)) {
+  if (!(medianResidual(matched_pairs, pose.cMo, K) <= opt.match.ransac_reproj_px)) {
     verdict.outcome = CheckOutcome::kPoseDisagrees;
     d.sanity = SanityStatus::kPoseDisagrees;
     return verdict;
