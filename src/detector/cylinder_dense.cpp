@@ -74,19 +74,24 @@ SceneLevel sceneLevel(const cv::Mat& scene, const cv::Rect& box, double sigma) {
   return s;
 }
 
-// Label and scene values of the samples in view at cMo.
-double correlationAt(const std::vector<Sample>& samples, const SceneLevel& s, const Intrinsics& cam, const Pose& cMo,
-                     int* n) {
-  std::vector<double> a, b;
+// Label (*t) and scene (*i) values of the samples in view at cMo.
+void valuesAt(const std::vector<Sample>& samples, const SceneLevel& s, const Intrinsics& cam, const Pose& cMo,
+              std::vector<double>* t, std::vector<double>* i) {
   for (const Sample& q : samples) {
     const Eigen::Vector3d Xc = cMo * q.X;
     if (!(Xc.z() > 1e-6)) continue;
     const Eigen::Vector2d p = cam.project(Xc);
     double v, dx, dy;
     if (!sampleImage(s.I, s.gx, s.gy, p.x() - s.origin.x, p.y() - s.origin.y, &v, &dx, &dy)) continue;
-    a.push_back(q.T);
-    b.push_back(v);
+    t->push_back(q.T);
+    i->push_back(v);
   }
+}
+
+double correlationAt(const std::vector<Sample>& samples, const SceneLevel& s, const Intrinsics& cam, const Pose& cMo,
+                     int* n) {
+  std::vector<double> a, b;
+  valuesAt(samples, s, cam, cMo, &a, &b);
   if (n) *n = static_cast<int>(a.size());
   return ncc(a, b);
 }
@@ -171,14 +176,7 @@ CylinderDenseResult refineCylinderPoseDense(const CylinderLabel& L, const std::v
     if (first) {
       // Gain and offset from the start: the label's spread onto the scene's.
       std::vector<double> tv, iv;
-      for (const Sample& q : samples) {
-        const Eigen::Vector2d p = cam.project(cMo * q.X);
-        double v, dx, dy;
-        if (sampleImage(s.I, s.gx, s.gy, p.x() - s.origin.x, p.y() - s.origin.y, &v, &dx, &dy)) {
-          tv.push_back(q.T);
-          iv.push_back(v);
-        }
-      }
+      valuesAt(samples, s, cam, cMo, &tv, &iv);
       if (tv.size() < 50) return res;
       double mt = 0, mi = 0, st = 0, si = 0;
       for (size_t i = 0; i < tv.size(); ++i) mt += tv[i], mi += iv[i];

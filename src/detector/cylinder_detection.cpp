@@ -422,6 +422,25 @@ std::vector<Eigen::Vector2d> projectVisibleLabel(const CylinderLabel& L, const P
   return out;
 }
 
+std::optional<std::pair<double, double>> predictedKeypointSizes(const RegisteredObject& obj, const Pose& cMo,
+                                                                const Intrinsics& camera) {
+  if (!obj.model.cylinder || !cMo.isFinite()) return std::nullopt;
+  const CylinderLabel& L = *obj.model.cylinder;
+  double lo = std::numeric_limits<double>::infinity(), hi = 0;
+  for (const cv::KeyPoint& k : obj.label_features.keypoints) {
+    if (!L.facesCamera(k.pt.x, k.pt.y, cMo, kExpansionFacingCos)) continue;
+    Eigen::Vector2d xs;
+    Eigen::Matrix2d J;
+    if (!projectLabel(L, cMo, camera.K(), Eigen::Vector2d(k.pt.x, k.pt.y), &xs, &J)) continue;
+    const double s = k.size * std::sqrt(std::abs(J.determinant()));
+    if (!std::isfinite(s)) continue;
+    lo = std::min(lo, s);
+    hi = std::max(hi, s);
+  }
+  if (!(hi > 0)) return std::nullopt;
+  return std::make_pair(lo, hi);
+}
+
 void registerCylinder(RegisteredObject* obj, const DetectorOptions& opt) {
   obj->cylinder_model = true;
   obj->dense_usable = false;  // the dense refinement aligns a plane

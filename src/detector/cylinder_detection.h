@@ -27,6 +27,7 @@
 // projected corners TL, TR, BR, BL of the label's visible part (its columns facing the camera,
 // its top and bottom rows), image px.
 #include <optional>
+#include <utility>
 #include <vector>
 
 #include "detector/checks.h"
@@ -62,5 +63,10 @@ std::optional<VisibleLabel> visibleLabel(const CylinderLabel& label, const Pose&
 /// included) at cMo; those behind the camera are left out. For the search region of a prior.
 std::vector<Eigen::Vector2d> projectVisibleLabel(const CylinderLabel& label, const Pose& cMo, const Intrinsics& camera,
                                                  int n);
+
+/// The smallest and largest scene sizes (px) of the label features facing a camera at cMo
+/// (their reference size times the local scale of the projection there); empty when none does.
+std::optional<std::pair<double, double>> predictedKeypointSizes(const RegisteredObject& obj, const Pose& cMo,
+                                                                const Intrinsics& camera);
 
 }  // namespace refgrasp::detector
