@@ -21,6 +21,11 @@ constexpr double kExpansionFacingCos = 0.1;
 // The label is compared with the scene where it faces the camera by more than this (75 deg):
 // nearer the limb it is a sliver where the silhouette's blend with the background dominates.
 constexpr double kVerifyFacingCos = 0.25;
+// The photometric refinement samples the label where it faces the camera by more than this
+// (60 deg): nearer the limb one scene px spans several label columns, and the label smoothed
+// isotropically no longer matches the scene smoothed there (a bias of about a degree about the
+// axis when 75 deg is used).
+constexpr double kDenseFacingCos = 0.5;
 // Guided expansion passes (predict, match, refit); the second starts from the first's pose.
 constexpr int kExpansionPasses = 2;
 // An expanded match stays an inlier within this many sigmas (sigma: keypoint size x
@@ -558,7 +563,7 @@ Verdict verifyCylinderCandidate(const CandidateContext& ctx, const MatchCandidat
   // the scene there and the features still fit it.
   if (ctx.scene.image.type() == CV_8UC1) {
     const CylinderDenseResult dense =
-        refineCylinderPoseDense(L, obj.pyramid, ctx.scene.image, ctx.camera, pose.cMo, kVerifyFacingCos);
+        refineCylinderPoseDense(L, obj.pyramid, ctx.scene.image, ctx.camera, pose.cMo, kDenseFacingCos);
     if (dense.ok && dense.correlation_after > dense.correlation_before &&
         medianResidual(pairs, dense.cMo, K) <= std::max(kMinInlierPx, 2 * medianResidual(pairs, pose.cMo, K))) {
       pose.cMo = dense.cMo;

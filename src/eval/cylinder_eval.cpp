@@ -88,7 +88,7 @@ CylinderView renderCylinderView(const Intrinsics& cam, const LabelledCylinder* c
   CylinderView v;
   cv::Mat backdrop;
   if (spec.backdrop.empty()) {
-    std::vector<std::string> exclude;
+    std::vector<std::string> exclude = spec.exclude_from_backdrop;
     if (c) exclude.push_back(c->photo);
     backdrop = testing::photoClutterBackground(spec.seed, cam.width, cam.height, exclude);
   } else {

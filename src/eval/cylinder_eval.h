@@ -51,6 +51,8 @@ struct CylinderViewSpec {
   double roll_rad = 0;         ///< axis turned in the image plane
   Eigen::Vector2d offset = Eigen::Vector2d::Zero();  ///< axis' middle off the optical axis, fraction of the half-view (-1..1)
   std::string backdrop;        ///< "" : photo clutter (seeded); else a media path resized to the frame
+  /// Photos (media paths) kept out of the photo clutter, besides the cylinder's own label photo.
+  std::vector<std::string> exclude_from_backdrop;
   double noise_sigma = 2;      ///< gray levels
   double motion_blur_px = 0;
   int jpeg_quality = 0;        ///< 1-100, 0: none
