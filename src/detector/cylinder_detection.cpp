@@ -335,7 +335,7 @@ bool sampleComparison(const RegisteredObject& obj, const VisibleLabel& part, con
   return true;
 }
 
-// Step 4's photometric check: VerifyOptions' rules over the visible part (overall correlation,
+// Step 5's photometric check: VerifyOptions' rules over the visible part (overall correlation,
 // half the textured 3 x 3 cells agreeing, min_strong_cells strongly).
 bool labelAgrees(const RegisteredObject& obj, const VisibleLabel& part, const Pose& cMo, const cv::Mat& scene,
                  const Intrinsics& cam, const VerifyOptions& vo, double* corr) {
@@ -559,7 +559,7 @@ Verdict verifyCylinderCandidate(const CandidateContext& ctx, const MatchCandidat
       pairs = std::move(more);
     }
   }
-  // The photometric refinement replaces the features' pose when the label agrees better with
+  // Step 4: the photometric refinement replaces the features' pose when the label agrees better with
   // the scene there and the features still fit it.
   if (ctx.scene.image.type() == CV_8UC1) {
     const CylinderDenseResult dense =
@@ -573,7 +573,7 @@ Verdict verifyCylinderCandidate(const CandidateContext& ctx, const MatchCandidat
   d.cMo = pose.cMo;
   d.pose_rms_px = pose.rms_px;
   d.inliers = pairs.size();
-  // Step 4: the matcher's band must lie where the pose puts it (a pose caught in a wrong
+  // Step 5: the matcher's band must lie where the pose puts it (a pose caught in a wrong
   // minimum, or pulled by the expansion onto look-alikes, does not explain it).
   if (!(medianResidual(matched_pairs, pose.cMo, K) <= opt.match.ransac_reproj_px)) {
     verdict.outcome = CheckOutcome::kPoseDisagrees;
