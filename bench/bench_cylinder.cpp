@@ -65,7 +65,9 @@ std::string cell(const Method& m) {
 
 void printTable(const char* title, const std::vector<std::string>& rows, const std::map<std::string, Bin>& bins,
                 const std::vector<std::string>& methods) {
-  std::printf("\n%s: within 2 deg and 2 %% / views (rate), found, median rotation and translation errors of the found\n", title);
+  std::printf(
+      "\n%s: within 2 deg and 2 %% / views (rate), found, median rotation and translation errors of the found\n",
+      title);
   std::printf("| bin |");
   for (const auto& n : methods) std::printf(" %s |", n.c_str());
   std::printf("\n|---|");
@@ -130,10 +132,10 @@ int main(int argc, char** argv) try {
                                {"photos/cookie_box.png", 0.05, 0.1, 0.5},
                                {"photos/fruits_closeup.jpg", 0.03, 0.09, 0.6}});
   if (labels != "eval")
-    specs.insert(specs.end(), {{"photos/aerial_town.jpg", 0.033, 0.115, 1.0},
-                               {"photos/butterfly_on_leaf.jpg", 0.045, 0.11, 0.6}});
-  const std::vector<std::string> backdrops = {"", "backgrounds/wall.png", "backgrounds/table_wood.png",
-                                              "backgrounds/floor.png", "clutter/clutter_02.png", ""};
+    specs.insert(specs.end(),
+                 {{"photos/aerial_town.jpg", 0.033, 0.115, 1.0}, {"photos/butterfly_on_leaf.jpg", 0.045, 0.11, 0.6}});
+  const std::vector<std::string> backdrops = {
+      "", "backgrounds/wall.png", "backgrounds/table_wood.png", "backgrounds/floor.png", "clutter/clutter_02.png", ""};
   const Intrinsics cam = testing::sceneCamera();
   std::vector<std::string> methods = {"cylinder model", "planar approximation (--pose paper)"};
   if (classic) methods.push_back("classic (flat label)");
@@ -163,7 +165,8 @@ int main(int argc, char** argv) try {
     std::snprintf(label_key, sizeof label_key, "%s, r %.0f mm, %s", ls.photo, 1000 * ls.radius_m,
                   full ? "all the way round" : "partial");
     label_rows.push_back(label_key);
-    std::vector<eval::CylinderViewSpec> vs = eval::randomCylinderViews(rng, views, 0.3, 1.5, full ? M_PI : 80 * kDeg, 20 * kDeg);
+    std::vector<eval::CylinderViewSpec> vs =
+        eval::randomCylinderViews(rng, views, 0.3, 1.5, full ? M_PI : 80 * kDeg, 20 * kDeg);
     for (size_t k = 0; k < vs.size(); ++k) {
       eval::CylinderViewSpec& s = vs[k];
       s.backdrop = backdrops[k % backdrops.size()];
@@ -188,9 +191,10 @@ int main(int argc, char** argv) try {
       const double d = s.distance_m;
       const std::string dk = d < 0.6 ? "0.3-0.6 m" : d < 0.9 ? "0.6-0.9 m" : d < 1.2 ? "0.9-1.2 m" : "1.2-1.5 m";
       const double turn = std::abs(s.turn_rad) / kDeg;
-      const std::string tk = full ? "label all the way round" : turn < 30 ? "partial, turned 0-30 deg"
-                                                                 : turn < 60 ? "partial, turned 30-60 deg"
-                                                                             : "partial, turned 60-80 deg";
+      const std::string tk = full        ? "label all the way round"
+                             : turn < 30 ? "partial, turned 0-30 deg"
+                             : turn < 60 ? "partial, turned 30-60 deg"
+                                         : "partial, turned 60-80 deg";
       for (size_t i = 0; i < e.size(); ++i) {
         binOf(by_distance, dk).m[i].add(e[i]);
         binOf(by_turn, tk).m[i].add(e[i]);
@@ -199,27 +203,31 @@ int main(int argc, char** argv) try {
       }
     }
   }
-  std::printf("bench_cylinder: %zu labels (%s), %d views each, seed %llu, %d views rendered, %d under the bar's "
-              "conditions\n",
-              specs.size(), labels.c_str(), views, static_cast<unsigned long long>(seed), total_views, counted_views);
+  std::printf(
+      "bench_cylinder: %zu labels (%s), %d views each, seed %llu, %d views rendered, %d under the bar's "
+      "conditions\n",
+      specs.size(), labels.c_str(), views, static_cast<unsigned long long>(seed), total_views, counted_views);
   std::printf("threads: %d, extractor: %s\n", cv::getNumThreads(),
               opt.sift.implementation == SiftImplementation::kFast ? "fast SIFT" : "cv::SIFT");
   printTable("By distance (views under the bar's conditions)", {"0.3-0.6 m", "0.6-0.9 m", "0.9-1.2 m", "1.2-1.5 m"},
              by_distance, methods);
-  printTable("By turn about the axis (views under the bar's conditions)",
-             {"partial, turned 0-30 deg", "partial, turned 30-60 deg", "partial, turned 60-80 deg", "label all the way round"},
-             by_turn, methods);
+  printTable(
+      "By turn about the axis (views under the bar's conditions)",
+      {"partial, turned 0-30 deg", "partial, turned 30-60 deg", "partial, turned 60-80 deg", "label all the way round"},
+      by_turn, methods);
   printTable("By label (views under the bar's conditions)", label_rows, by_label, methods);
   printTable("All", {"all"}, all, methods);
-  std::printf("\nTime per frame (median over every rendered view, ms):\n| stage | cylinder model | planar approximation |\n|---|---|---|\n");
-  std::printf("| extraction (SIFT) | %.1f | |\n| matching (label and seam indices) | %.1f | |\n", bench::median(t_extract),
-              bench::median(t_match));
-  std::printf("| pose and checks (PnP, expansion, photometric refinement, verification) | %.1f | |\n", bench::median(t_pose));
-  std::printf("| whole detect (wall) | %.1f | %.1f |\n| whole detect (CPU, all threads) | %.1f | %.1f |\n", bench::median(t_total),
-              bench::median(t_total_paper), bench::median(t_cpu), bench::median(t_cpu_paper));
+  std::printf(
+      "\nTime per frame (median over every rendered view, ms):\n| stage | cylinder model | planar approximation "
+      "|\n|---|---|---|\n");
+  std::printf("| extraction (SIFT) | %.1f | |\n| matching (label and seam indices) | %.1f | |\n",
+              bench::median(t_extract), bench::median(t_match));
+  std::printf("| pose and checks (PnP, expansion, photometric refinement, verification) | %.1f | |\n",
+              bench::median(t_pose));
+  std::printf("| whole detect (wall) | %.1f | %.1f |\n| whole detect (CPU, all threads) | %.1f | %.1f |\n",
+              bench::median(t_total), bench::median(t_total_paper), bench::median(t_cpu), bench::median(t_cpu_paper));
   return 0;
-}
-catch (const std::exception& e) {  // a missing or unreadable input: one line, not an abort
+} catch (const std::exception& e) {  // a missing or unreadable input: one line, not an abort
   std::fprintf(stderr, "bench_cylinder: %s\n", e.what());
   return 1;
 }

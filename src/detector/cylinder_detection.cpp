@@ -105,14 +105,16 @@ double residualPx(const Pose& cMo, const Eigen::Matrix3d& K, const Eigen::Vector
 // Median and RMS reprojection error (px) of the pairs at cMo; infinite without pairs.
 double medianResidual(const Pairs& p, const Pose& cMo, const Eigen::Matrix3d& K) {
   std::vector<double> r;
-  for (int i = 0; i < p.size(); ++i) r.push_back(residualPx(cMo, K, p.X[static_cast<size_t>(i)], p.y[static_cast<size_t>(i)]));
+  for (int i = 0; i < p.size(); ++i)
+    r.push_back(residualPx(cMo, K, p.X[static_cast<size_t>(i)], p.y[static_cast<size_t>(i)]));
   if (r.empty()) return std::numeric_limits<double>::infinity();
   std::nth_element(r.begin(), r.begin() + static_cast<long>(r.size() / 2), r.end());
   return r[r.size() / 2];
 }
 double rmsResidual(const Pairs& p, const Pose& cMo, const Eigen::Matrix3d& K) {
   double s = 0;
-  for (int i = 0; i < p.size(); ++i) s += std::pow(residualPx(cMo, K, p.X[static_cast<size_t>(i)], p.y[static_cast<size_t>(i)]), 2);
+  for (int i = 0; i < p.size(); ++i)
+    s += std::pow(residualPx(cMo, K, p.X[static_cast<size_t>(i)], p.y[static_cast<size_t>(i)]), 2);
   return p.size() > 0 ? std::sqrt(s / p.size()) : std::numeric_limits<double>::infinity();
 }
 
@@ -152,12 +154,13 @@ PoseResult initialPose(Pairs* p, const Eigen::Matrix3d& K, const DetectorOptions
     for (int c = 0; c < 3; ++c) Kcv.at<double>(r, c) = K(r, c);
   cv::Mat rvec, tvec;
   std::vector<int> inl;
-  const bool ok = cv::solvePnPRansac(obj, img, Kcv, cv::noArray(), rvec, tvec, false, kPnpIterations,
-                                     static_cast<float>(opt.match.ransac_reproj_px), kPnpConfidence, inl,
-                                     cv::SOLVEPNP_SQPNP);
+  const bool ok =
+      cv::solvePnPRansac(obj, img, Kcv, cv::noArray(), rvec, tvec, false, kPnpIterations,
+                         static_cast<float>(opt.match.ransac_reproj_px), kPnpConfidence, inl, cv::SOLVEPNP_SQPNP);
   if (!ok || rvec.empty() || tvec.empty()) return {};
-  const Pose start = Pose::fromRotationVector(Eigen::Vector3d(rvec.at<double>(0), rvec.at<double>(1), rvec.at<double>(2)),
-                                              Eigen::Vector3d(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2)));
+  const Pose start =
+      Pose::fromRotationVector(Eigen::Vector3d(rvec.at<double>(0), rvec.at<double>(1), rvec.at<double>(2)),
+                               Eigen::Vector3d(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2)));
   if (!start.isFinite()) return {};
   return refitRobustly(p, start, K, opt.pose_options);
 }
@@ -268,14 +271,17 @@ bool sampleComparison(const RegisteredObject& obj, const VisibleLabel& part, con
       const Eigen::Vector2d uv(part.u0 + (i + 0.5) * w_ref / kCoarse, part.v0 + (j + 0.5) * h_ref / kCoarse);
       Eigen::Vector2d xs;
       Eigen::Matrix2d J;
-      if (projectLabel(L, cMo, K, uv, &xs, &J)) a_scene += std::abs(J.determinant()) * w_ref * h_ref / (kCoarse * kCoarse);
+      if (projectLabel(L, cMo, K, uv, &xs, &J))
+        a_scene += std::abs(J.determinant()) * w_ref * h_ref / (kCoarse * kCoarse);
     }
   const double a_ref = w_ref * h_ref;
   if (!(a_scene > 16) || !(a_ref > 0) || !std::isfinite(a_scene)) return false;
-  const double s = std::min(vo.compare_px / std::max(w_ref, h_ref), std::sqrt(a_scene / a_ref));  // grid px per label px
+  const double s =
+      std::min(vo.compare_px / std::max(w_ref, h_ref), std::sqrt(a_scene / a_ref));  // grid px per label px
   const int tw = std::max(4, static_cast<int>(std::ceil(w_ref * s)));
   const int th = std::max(4, static_cast<int>(std::ceil(h_ref * s)));
-  const int L_level = std::clamp(static_cast<int>(std::floor(std::log2(1 / s))), 0, static_cast<int>(obj.pyramid.size()) - 1);
+  const int L_level =
+      std::clamp(static_cast<int>(std::floor(std::log2(1 / s))), 0, static_cast<int>(obj.pyramid.size()) - 1);
   const double ls = std::ldexp(1.0, L_level);
   cv::Mat mapx(th, tw, CV_32F), mapy(th, tw, CV_32F), smx(th, tw, CV_32F), smy(th, tw, CV_32F);
   cv::Mat front(th, tw, CV_8UC1, cv::Scalar(0));
@@ -314,7 +320,8 @@ bool sampleComparison(const RegisteredObject& obj, const VisibleLabel& part, con
     if (step > 1.2) cv::GaussianBlur(img, out, cv::Size(0, 0), 0.45 * step);
     return out;
   };
-  const cv::Mat sc = lowpass(scene(crop), scene_step), ref = lowpass(obj.pyramid[static_cast<size_t>(L_level)], ref_step);
+  const cv::Mat sc = lowpass(scene(crop), scene_step),
+                ref = lowpass(obj.pyramid[static_cast<size_t>(L_level)], ref_step);
   smx -= static_cast<float>(crop.x);
   smy -= static_cast<float>(crop.y);
   cv::Mat a, b, inside;
@@ -352,8 +359,8 @@ bool labelAgrees(const RegisteredObject& obj, const VisibleLabel& part, const Po
   int cells = 0, agreeing = 0, strong = 0;
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) {
-      const double x = correlation(c, cv::Rect(j * tw / 3, i * th / 3, (j + 1) * tw / 3 - j * tw / 3,
-                                               (i + 1) * th / 3 - i * th / 3));
+      const double x = correlation(
+          c, cv::Rect(j * tw / 3, i * th / 3, (j + 1) * tw / 3 - j * tw / 3, (i + 1) * th / 3 - i * th / 3));
       if (std::isnan(x)) continue;
       ++cells;
       agreeing += x >= vo.min_correlation;
@@ -585,9 +592,11 @@ Verdict verifyCylinderCandidate(const CandidateContext& ctx, const MatchCandidat
     verdict.outcome = CheckOutcome::kNotVerified;
     return verdict;
   }
-  const std::array<Eigen::Vector2d, 4> label_corners = {Eigen::Vector2d(part->u0, part->v0), Eigen::Vector2d(part->u1, part->v0),
-                                                        Eigen::Vector2d(part->u1, part->v1), Eigen::Vector2d(part->u0, part->v1)};
-  for (int i = 0; i < 4; ++i) d.corners[static_cast<size_t>(i)] = ctx.camera.project(pose.cMo * L.point(label_corners[static_cast<size_t>(i)]));
+  const std::array<Eigen::Vector2d, 4> label_corners = {
+      Eigen::Vector2d(part->u0, part->v0), Eigen::Vector2d(part->u1, part->v0), Eigen::Vector2d(part->u1, part->v1),
+      Eigen::Vector2d(part->u0, part->v1)};
+  for (int i = 0; i < 4; ++i)
+    d.corners[static_cast<size_t>(i)] = ctx.camera.project(pose.cMo * L.point(label_corners[static_cast<size_t>(i)]));
   d.sanity = checkDetection(d.corners, d.cMo, ctx.camera.width, ctx.camera.height, opt.sanity);
   if (d.sanity != SanityStatus::kOk) {
     verdict.outcome = CheckOutcome::kSanity;
