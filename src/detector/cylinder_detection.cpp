@@ -154,9 +154,13 @@ PoseResult initialPose(Pairs* p, const Eigen::Matrix3d& K, const DetectorOptions
     for (int c = 0; c < 3; ++c) Kcv.at<double>(r, c) = K(r, c);
   cv::Mat rvec, tvec;
   std::vector<int> inl;
-  const bool ok =
-      cv::solvePnPRansac(obj, img, Kcv, cv::noArray(), rvec, tvec, false, kPnpIterations,
-                         static_cast<float>(opt.match.ransac_reproj_px), kPnpConfidence, inl, cv::SOLVEPNP_SQPNP);
+  bool ok = false;
+  try {  // degenerate points (all on one line): no pose for this candidate, the frame goes on
+    ok = cv::solvePnPRansac(obj, img, Kcv, cv::noArray(), rvec, tvec, false, kPnpIterations,
+                            static_cast<float>(opt.match.ransac_reproj_px), kPnpConfidence, inl, cv::SOLVEPNP_SQPNP);
+  } catch (const cv::Exception&) {
+    ok = false;
+  }
   if (!ok || rvec.empty() || tvec.empty()) return {};
   const Pose start =
       Pose::fromRotationVector(Eigen::Vector3d(rvec.at<double>(0), rvec.at<double>(1), rvec.at<double>(2)),
