@@ -120,14 +120,15 @@ double rmsResidual(const Pairs& p, const Pose& cMo, const Eigen::Matrix3d& K) {
 
 // Huber LM over the pairs from `start`, then again over those within the inlier bound of the
 // result. Keeps the kept pairs in *p. ok = false when fewer than 6 remain or LM fails.
-PoseResult refitRobustly(Pairs* p, const Pose& start, const Eigen::Matrix3d& K, const PoseOptions& po) {
+PoseResult refitRobustly(Pairs* p, const Pose& start, const Eigen::Matrix3d& K, const PoseOptions& po,
+                         double floor_px = kMinInlierPx) {
   PoseResult r;
   if (p->size() < 6) return r;
   r = refinePoseLM(p->X, p->y, K, start, po.refined_lm_iterations, po.huber_px, p->sigma);
   if (!r.ok || !r.cMo.isFinite()) return PoseResult{};
   Pairs kept;
   for (int i = 0; i < p->size(); ++i)
-    if (residualPx(r.cMo, K, p->X[i], p->y[i]) <= std::max(kMinInlierPx, kInlierSigmas * p->sigma[i])) {
+    if (residualPx(r.cMo, K, p->X[i], p->y[i]) <= std::max(floor_px, kInlierSigmas * p->sigma[i])) {
       kept.X.push_back(p->X[i]);
       kept.y.push_back(p->y[i]);
       kept.sigma.push_back(p->sigma[i]);
@@ -140,7 +141,9 @@ PoseResult refitRobustly(Pairs* p, const Pose& start, const Eigen::Matrix3d& K, 
   return r;
 }
 
-// Step 2: robust PnP on the band's matches, then refitRobustly.
+// Step 2: robust PnP on the band's matches, then refitRobustly on its inliers, keeping those
+// within ransac_reproj_px (the band's own bound: a pose from a narrow band is not yet precise;
+// the expansion tightens it).
 PoseResult initialPose(Pairs* p, const Eigen::Matrix3d& K, const DetectorOptions& opt) {
   if (p->size() < 6) return {};
   std::vector<cv::Point3d> obj;
@@ -166,7 +169,16 @@ PoseResult initialPose(Pairs* p, const Eigen::Matrix3d& K, const DetectorOptions
       Pose::fromRotationVector(Eigen::Vector3d(rvec.at<double>(0), rvec.at<double>(1), rvec.at<double>(2)),
                                Eigen::Vector3d(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2)));
   if (!start.isFinite()) return {};
-  return refitRobustly(p, start, K, opt.pose_options);
+  Pairs in;  // RANSAC's inliers
+  for (const int i : inl) {
+    if (i < 0 || i >= p->size()) continue;
+    in.X.push_back(p->X[static_cast<size_t>(i)]);
+    in.y.push_back(p->y[static_cast<size_t>(i)]);
+    in.sigma.push_back(p->sigma[static_cast<size_t>(i)]);
+    in.from.push_back(p->from[static_cast<size_t>(i)]);
+  }
+  *p = std::move(in);
+  return refitRobustly(p, start, K, opt.pose_options, std::max(kMinInlierPx, opt.match.ransac_reproj_px));
 }
 
 float squaredL2(const float* a, const float* b) {
