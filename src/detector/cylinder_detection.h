@@ -10,8 +10,8 @@
 //      homography). A full-wrap label is matched a second time rolled by W/2 (its seam in the
 //      middle), so that a view centred on the seam is found too.
 //   2. Pose: the band's inliers, reference px -> label points on the surface
-//      (CylinderLabel::point), robust PnP (SQPnP in RANSAC), then Huber LM (refinePoseLM, sigma
-//      from the scene keypoint size).
+//      (CylinderLabel::point), robust PnP (SQPnP in RANSAC), then Huber LM on its inliers
+//      (refinePoseLM, sigma from the scene keypoint size).
 //   3. Guided expansion, twice: every label feature whose surface point faces the camera is
 //      projected at the pose and matched to the scene features near the prediction (orientation
 //      and size predicted by the local projection's Jacobian, descriptor-nearest, local ratio);
