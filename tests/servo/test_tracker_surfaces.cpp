@@ -367,39 +367,71 @@ TEST(SurfaceTracker, TheMbtTrackerRefusesObjectsThatAreNotOnePlane) {
 // approximation's pose (the flat label on the tangent plane: its rotation is off by tens of
 // degrees on this label, its position by millimetres); the tracker starts from it on the
 // cylinder's surface model and keeps it, without a loss, to the end.
-TEST(SurfaceTracker, ThePipelineDetectsConfirmsAndTracksACan) {
-  const Sequence& seq = canSequence();
-  detector::Detector det;
-  det.addObject(canModel());
-  servo::TargetTracker pipeline(det);
-  std::string modes;
-  std::vector<double> trans, rot;
+namespace {
+
+struct PipelineRun {
+  std::string modes;  ///< per frame: D detected, T tracked, . no pose
   int confirmed = 0;
+  std::vector<double> trans_m, rot_deg;
+};
+
+/// The robot's per-frame pipeline (detect, confirm, track, re-detect) with a real detector on `seq`.
+PipelineRun runPipeline(const Sequence& seq, const detector::ObjectModel& model) {
+  detector::Detector det;
+  det.addObject(model);
+  servo::TargetTracker pipeline(det);
+  PipelineRun run;
   for (size_t k = 0; k < seq.frames.size(); ++k) {
     robot::MonoFrame f;
     f.image = seq.frames[k];
     f.stamp = static_cast<double>(k) / 30;
     f.index = static_cast<int64_t>(k);
     const servo::TargetFrame r = pipeline.process(f, seq.camera);
-    ASSERT_TRUE(r.ok) << r.error;
+    EXPECT_TRUE(r.ok) << r.error;
+    if (!r.ok) return run;
     const servo::TargetState& s = r.objects[0];
-    modes += s.mode == servo::TrackMode::kDetect ? 'D' : s.mode == servo::TrackMode::kTrack ? 'T' : '.';
-    confirmed += s.confirmed;
+    run.modes += s.mode == servo::TrackMode::kDetect ? 'D' : s.mode == servo::TrackMode::kTrack ? 'T' : '.';
+    run.confirmed += s.confirmed;
     if (s.cMo) {
-      trans.push_back(translationError(*s.cMo, seq.truth[k]));
-      rot.push_back(rotationError(*s.cMo, seq.truth[k]) / kDeg);
+      run.trans_m.push_back(translationError(*s.cMo, seq.truth[k]));
+      run.rot_deg.push_back(rotationError(*s.cMo, seq.truth[k]) / kDeg);
     }
   }
-  std::printf("pipeline on the can: %s (%d confirmed); translation median %.2f max %.2f mm, rotation "
+  std::printf("pipeline on the %s: %s (%d confirmed); translation median %.2f max %.2f mm, rotation "
               "median %.3f max %.3f deg\n",
-              modes.c_str(), confirmed, 1e3 * median(trans), 1e3 * *std::max_element(trans.begin(), trans.end()),
-              median(rot), *std::max_element(rot.begin(), rot.end()));
-  const size_t first = modes.find("DD");
-  ASSERT_NE(first, std::string::npos) << "two detections in a row confirm the can";
-  EXPECT_EQ(modes.find('.', first), std::string::npos) << "no loss once confirmed: " << modes;
-  EXPECT_NE(modes.find('T', first), std::string::npos) << modes;
-  EXPECT_GE(confirmed, static_cast<int>(modes.size() - first) - 1);
-  EXPECT_LT(*std::max_element(trans.begin(), trans.end()), 0.015);
+              model.name.c_str(), run.modes.c_str(), run.confirmed, 1e3 * median(run.trans_m),
+              1e3 * *std::max_element(run.trans_m.begin(), run.trans_m.end()), median(run.rot_deg),
+              *std::max_element(run.rot_deg.begin(), run.rot_deg.end()));
+  return run;
+}
+
+/// Confirmed by two detections in a row, then tracked, never lost.
+void expectConfirmedAndTracked(const PipelineRun& run) {
+  const size_t first = run.modes.find("DD");
+  ASSERT_NE(first, std::string::npos) << "two detections in a row confirm the object";
+  EXPECT_EQ(run.modes.find('.', first), std::string::npos) << "no loss once confirmed: " << run.modes;
+  EXPECT_NE(run.modes.find('T', first), std::string::npos) << run.modes;
+  EXPECT_GE(run.confirmed, static_cast<int>(run.modes.size() - first) - 1);
+}
+
+}  // namespace
+
+TEST(SurfaceTracker, ThePipelineDetectsConfirmsAndTracksACan) {
+  const PipelineRun run = runPipeline(canSequence(), canModel());
+  expectConfirmedAndTracked(run);
+  EXPECT_LT(*std::max_element(run.trans_m.begin(), run.trans_m.end()), 0.015);
+  // The detector's cylinder pose starts the tracker (measured: 5.3 deg at worst, 1.0 median).
+  EXPECT_LT(*std::max_element(run.rot_deg.begin(), run.rot_deg.end()), 7.0);
+}
+
+// A several-view box through the same pipeline: detected by the face it shows, confirmed, then
+// tracked while it turns its front away and its side into view.
+TEST(SurfaceTracker, ThePipelineDetectsConfirmsAndTracksASeveralViewBox) {
+  const PipelineRun run = runPipeline(boxSequence(), boxModel());
+  expectConfirmedAndTracked(run);
+  // Measured: 9.5 mm and 4.0 deg at worst, as the tracker from the ground truth (9.1 mm, 3.0 deg).
+  EXPECT_LT(*std::max_element(run.trans_m.begin(), run.trans_m.end()), 0.013);
+  EXPECT_LT(*std::max_element(run.rot_deg.begin(), run.rot_deg.end()), 5.0);
 }
 
 // The new options are checked at start-up; the oracle (ground truth as an estimator) sees a
