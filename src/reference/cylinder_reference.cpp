@@ -57,14 +57,19 @@ double bilinear(const cv::Mat& img, const Eigen::Vector2d& p) {
 // the background is as bright as the can, the silhouette is a weaker step than the label's
 // texture beside it, but still a step. Lines through two candidates (undistorted, where the
 // silhouette is straight) score per quarter of the segment, each sample 1 - (d / 0.5 px)^2 for
-// its nearest candidate within 0.5 px (MSAC), and a line scores its weakest quarter: the
+// its nearest candidate within 0.5 px (MSAC), and a line scores its second weakest quarter: the
 // silhouette runs along the whole segment, the label's own edges are short or curved, and a line
-// that follows the silhouette over half the segment and something else over the rest loses.
+// that follows the silhouette over half the segment and something else over the rest loses; but
+// where the label's rim, dark at a grazing angle, meets a background as dark, the silhouette is no
+// step over a stretch (a valley between the label's step inside it and the background's outside),
+// and a weakest-quarter score would hand the edge to a line that follows the label's step there
+// and the silhouette elsewhere, tilted.
 // Among the lines scoring at least 70 % of the best, the outermost (`outward`: away from the
 // other edge) wins: a band along the silhouette (a highlight, the label's texture averaged at a
 // grazing angle) makes a second straight edge just inside it, as long as the can. The line is
-// refitted to its candidates and the plane fitted (least squares) to their rays. Keeps `plane`
-// when fewer than a third of the samples (or 8) support any line: no clear edge near the clicks.
+// refitted to its candidates and the plane fitted (least squares) to their rays. Only lines that
+// a third of the samples (and 8) support count; keeps `plane` when there is none: no clear edge
+// near the clicks.
 bool snapEdge(const cv::Mat& smooth, const std::array<Eigen::Vector2d, 2>& edge, const Eigen::Vector2d& outward,
               const Intrinsics& cam, double search_px, Eigen::Vector3d& plane) {
   const Eigen::Vector2d along = (edge[1] - edge[0]).normalized(), across(-along.y(), along.x());
@@ -113,7 +118,8 @@ bool snapEdge(const cv::Mat& smooth, const std::array<Eigen::Vector2d, 2>& edge,
       ++sup.count;
       if (on) on->push_back(*best);
     }
-    sup.score = *std::min_element(quarter.begin(), quarter.end());
+    std::sort(quarter.begin(), quarter.end());
+    sup.score = quarter[1];
     return sup;
   };
   struct Line {
@@ -128,10 +134,11 @@ bool snapEdge(const cv::Mat& smooth, const std::array<Eigen::Vector2d, 2>& edge,
       const Eigen::Vector2d d = all[j].second - all[i].second;
       const Eigen::Vector2d nrm = Eigen::Vector2d(-d.y(), d.x()).normalized();
       const Support sup = support(all[i].second, nrm, nullptr);
+      if (3 * sup.count < n + 1 || sup.count < 8) continue;
       if (sup.score > best.score || (sup.score == best.score && sup.count > best.count)) best = sup;
       if (sup.score > 0) lines.push_back({sup, all[i].second, nrm});
     }
-  if (3 * best.count < n + 1 || best.count < 8) return false;
+  if (best.count == 0 || best.score <= 0) return false;
   // The outermost of the lines near the best, measured along `outward` at the segment's middle.
   const Eigen::Vector2d mid = cam.undistortPixel(0.5 * (edge[0] + edge[1]));
   double outermost = -1e9;
