@@ -88,7 +88,7 @@ int runVisionComponent(int argc, char** argv) {
     std::set<std::string> names;
     for (const auto& f : object_files) {
       detector::ObjectModel m = detector::loadObjectDefinition(f);
-      if (!m.has3d()) throw ConfigError(f, "reference_pose", "required by the component (a 3D pose)");
+      if (!m.hasPose()) throw ConfigError(f, "reference_pose", "required by the component (a 3D pose)");
       if (!names.insert(m.name).second)
         throw ConfigError(f, "name", "object name '" + m.name + "' used twice");
       det.addObject(m);

@@ -33,7 +33,7 @@ constexpr double kPollPeriodS = 0.2;
 std::vector<std::string> checkedObjectNames(const detector::Detector& detector) {
   std::vector<std::string> names;
   for (int i = 0; i < detector.objectCount(); ++i) {
-    if (!detector.object(i).has3d())
+    if (!detector.object(i).hasPose())
       throw std::invalid_argument(detector.object(i).name + ": the component needs a reference_pose (3D)");
     names.push_back(detector.object(i).name);
   }

@@ -1,9 +1,11 @@
 #include "component/worker.h"
 
 #include <algorithm>
+#include <array>
 
 #include "robot/camera.h"
 #include "robot/dds/convert.h"
+#include "servo/surface_model.h"
 
 namespace refgrasp::component {
 
@@ -175,8 +177,10 @@ void Worker::publishDetections(const msg::Header& header, const FrameOutcome& ou
     hypotheses[k].pose.pose = dds::toRosPose(cMo);
     detections[k].header = header;
     detections[k].results = {1, 1, &hypotheses[k], false};
-    // The box around the pattern: its centre and extent on the object plane.
-    const auto& corners = detector_.object(object_id).target->corners_o;
+    // The box around the pattern (several views: the view seen most squarely): its centre and
+    // extent on the object plane.
+    const std::array<Eigen::Vector3d, 4> corners =
+        *servo::facingQuad(servo::patternQuads(detector_.object(object_id)), cMo);
     const Eigen::Vector3d centre = (corners[0] + corners[1] + corners[2] + corners[3]) / 4.0;
     detections[k].bbox.center = dds::toRosPose(cMo * Pose(Eigen::Matrix3d::Identity(), centre));
     detections[k].bbox.size = {(corners[1] - corners[0]).norm(), (corners[3] - corners[0]).norm(), 0.0};

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "core/geometry.h"
+#include "detector/cylinder_detection.h"
 #include "detector/homography.h"
 #include "detector/periods.h"
 #include "detector/realign.h"
@@ -134,6 +135,7 @@ CheckOutcome checkCandidate(const CandidateContext& ctx, const MatchCandidate& c
 
 Verdict verifyCandidate(const CandidateContext& ctx, const MatchCandidate& matched) {
   const RegisteredObject& obj = ctx.object;
+  if (obj.cylinder_model) return verifyCylinderCandidate(ctx, matched);
   const VerifyOptions& vo = ctx.opt.verify;
   // The re-alignment and the alternatives need the frame and a pattern mostly in view: they are
   // measured at the pattern's corners, which a close-up puts far outside the frame.

@@ -8,6 +8,7 @@
 
 #include "core/error.h"
 #include "detector/checks.h"
+#include "detector/cylinder_detection.h"
 #include "detector/detector_internal.h"
 #include "detector/homography.h"
 #include "detector/registered_object.h"
@@ -191,7 +192,7 @@ void detectObject(const RegisteredObject& obj, int id, const DetectorOptions& op
 
   auto t = Clock::now();
   MatchResult m;
-  if (extraction) m = matchObjectUnchecked(obj.index, scene, extraction->grid, opt.match);
+  if (extraction) m = matchRegistered(obj, scene, extraction->grid, opt.match);
   res->time_ms.match += msSince(t);
   st.global_matches = m.global_matches;
   st.hypotheses_evaluated = m.hypotheses_evaluated;

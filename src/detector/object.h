@@ -89,6 +89,7 @@ struct ObjectModel {
   bool has3d() const { return target.has_value(); }
   bool isCylinder() const { return cylinder.has_value(); }
   bool isMultiView() const { return !views.empty(); }
+  bool hasPose() const { return has3d() || isMultiView(); }  ///< detections give a cMo
 };
 
 /// Validates the pieces and fills corners_px and target. Throws ConfigError(source or name, field,

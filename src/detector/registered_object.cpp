@@ -5,6 +5,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "core/geometry.h"
+#include "detector/cylinder_detection.h"
 #include "detector/homography.h"
 
 namespace refgrasp::detector {
@@ -55,6 +56,7 @@ RegisteredObject registerObject(const ObjectModel& object, const DetectorOptions
     miny = std::min(miny, p.y()), maxy = std::max(maxy, p.y());
   }
   obj.region_is_rect = std::abs(signedArea(obj.polygon_und_px)) >= 0.98 * (maxx - minx) * (maxy - miny);
+  if (object.isCylinder() && opt.pose == PoseMethod::kRefined) registerCylinder(&obj, opt);
   return obj;
 }
 

@@ -8,6 +8,7 @@
 #include <Eigen/Core>
 #include <array>
 #include <opencv2/core.hpp>
+#include <optional>
 #include <vector>
 
 #include "core/camera.h"
@@ -31,6 +32,18 @@ struct RegisteredObject {
   /// repeatPeriods(index): displacements in the rectified pattern plane that carry many features
   /// onto look-alikes (a facade's windows); empty for most references.
   std::vector<Eigen::Vector2d> periods;
+  /// The object is detected on its cylinder model (detector/cylinder_detection.h): a cylinder
+  /// object under the refined pose method. false for planar objects and for a cylinder under
+  /// the paper method (its flat label on the tangent plane: the planar path).
+  bool cylinder_model = false;
+  /// A full-wrap label on its cylinder model: the label rolled by W/2 columns (its seam in the
+  /// middle), so that a view centred on the seam is matched too. Its features' reference px are
+  /// rolled label px (label column = rolled column + W/2, modulo W).
+  std::optional<ReferenceIndex> seam_index;
+  /// Cylinder model: every label feature once, keypoints in label px (a full-wrap label's
+  /// columns within W/4 of its seam from seam_index, the others from index), for the guided
+  /// expansion over the visible half.
+  Features label_features;
 };
 
 /// Reference features, index, pyramid and periods of `object` (a non-empty 8-bit gray reference).

@@ -3,20 +3,60 @@
 #include <algorithm>
 #include <cmath>
 
+#include "detector/cylinder_detection.h"
 #include "detector/homography.h"
 
 namespace refgrasp::detector {
 
 namespace {
 
+// The box [lo, hi] (real image px) grown by the prior's margin, clamped just outside the image
+// (the caller clips it to the image).
+bool growRegion(const Eigen::Vector2d& lo, const Eigen::Vector2d& hi, const ObjectPrior& p, const Intrinsics& cam,
+                cv::Rect* roi, double* margin_px) {
+  const double m = p.roi_margin * std::max(hi.x() - lo.x(), hi.y() - lo.y());
+  *margin_px = std::floor(m);
+  auto clampX = [&](double x) { return static_cast<int>(std::clamp(x, -1.0, cam.width + 1.0)); };
+  auto clampY = [&](double y) { return static_cast<int>(std::clamp(y, -1.0, cam.height + 1.0)); };
+  *roi = cv::Rect(cv::Point(clampX(std::floor(lo.x() - m)), clampY(std::floor(lo.y() - m))),
+                  cv::Point(clampX(std::ceil(hi.x() + m) + 1), clampY(std::ceil(hi.y() + m) + 1)));
+  return true;
+}
+
+// The region a predicted pose gives a cylinder on its cylinder model: the projection of the
+// label's visible part (real image px) and the sizes its features would have there, widened by
+// scale_margin, as predictRegion does for a plane.
+bool predictCylinderRegion(const RegisteredObject& obj, const ObjectPrior& p, const Intrinsics& cam,
+                           Eigen::Vector2d* lo, Eigen::Vector2d* hi, double* min_size, double* max_size) {
+  const CylinderLabel& L = *obj.model.cylinder;
+  constexpr int kGrid = 9;  // points per side of the grid over the visible part
+  const std::vector<Eigen::Vector2d> px = projectVisibleLabel(L, *p.cMo, cam, kGrid);
+  if (px.size() < 4) return false;
+  *lo = Eigen::Vector2d(1e300, 1e300);
+  *hi = -*lo;
+  for (const auto& q : px) {
+    *lo = lo->cwiseMin(q);
+    *hi = hi->cwiseMax(q);
+  }
+  const auto sizes = predictedKeypointSizes(obj, *p.cMo, cam);
+  if (!sizes) return false;
+  *min_size = sizes->first / p.scale_margin;
+  *max_size = sizes->second * p.scale_margin;
+  return lo->allFinite() && hi->allFinite();
+}
+
 // The region a predicted pose gives: the projected pattern's bounding box (real image px) grown
 // by roi_margin, and the reference keypoint sizes scaled by the predicted homography's local
 // scale, widened by scale_margin. False when the pattern is not in front of the camera.
 bool predictRegion(const RegisteredObject& obj, const ObjectPrior& p, const Intrinsics& cam,
                    cv::Rect* roi, double* min_size, double* max_size, double* margin_px) {
+  Eigen::Vector2d lo(1e300, 1e300), hi(-1e300, -1e300);
+  if (obj.cylinder_model) {
+    if (!predictCylinderRegion(obj, p, cam, &lo, &hi, min_size, max_size)) return false;
+    return growRegion(lo, hi, p, cam, roi, margin_px);
+  }
   const PlanarTarget& t = *obj.model.target;
   std::vector<Eigen::Vector2d> ref(4), und(4);
-  Eigen::Vector2d lo(1e300, 1e300), hi(-1e300, -1e300);
   for (int i = 0; i < 4; ++i) {
     const Eigen::Vector3d Xc = *p.cMo * t.corners_o[i];
     if (!(Xc.z() > 1e-6)) return false;
@@ -42,15 +82,9 @@ bool predictRegion(const RegisteredObject& obj, const ObjectPrior& p, const Intr
   if (smax <= 0) return false;
   *min_size = smin / p.scale_margin;
   *max_size = smax * p.scale_margin;
-  // Grown by the margin, clamped just outside the image (the caller clips it to the image).
-  const double m = p.roi_margin * std::max(hi.x() - lo.x(), hi.y() - lo.y());
-  *margin_px = std::floor(m);
-  auto clampX = [&](double x) { return static_cast<int>(std::clamp(x, -1.0, cam.width + 1.0)); };
-  auto clampY = [&](double y) { return static_cast<int>(std::clamp(y, -1.0, cam.height + 1.0)); };
-  *roi = cv::Rect(cv::Point(clampX(std::floor(lo.x() - m)), clampY(std::floor(lo.y() - m))),
-                  cv::Point(clampX(std::ceil(hi.x() + m) + 1), clampY(std::ceil(hi.y() + m) + 1)));
-  return true;
+  return growRegion(lo, hi, p, cam, roi, margin_px);
 }
+
 
 }  // namespace
 
@@ -66,7 +100,7 @@ Search searchFor(const RegisteredObject& obj, const ObjectPrior* prior, const De
   if (prior) {
     cv::Rect predicted;
     double margin_px = 0;
-    const bool has_prediction = prior->cMo && obj.model.target &&
+    const bool has_prediction = prior->cMo && (obj.model.target || obj.cylinder_model) &&
                                 predictRegion(obj, *prior, camera, &predicted, &s.region.min_size_px,
                                               &s.region.max_size_px, &margin_px);
     if (prior->roi.area() > 0) {

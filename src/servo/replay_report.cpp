@@ -15,6 +15,7 @@
 #include "core/json.h"
 #include "detector/detection_json.h"
 #include "detector/draw.h"
+#include "servo/surface_model.h"
 
 namespace refgrasp::servo {
 
@@ -95,11 +96,13 @@ cv::Scalar modeColour(TrackMode m) {
   return {0, 0, 0};
 }
 
-// Half the larger side of an object's pattern (metres): the overlay's axis length.
+// Half the larger side of an object's pattern (several views: of the largest), metres: the
+// overlay's axis length.
 double axisLength(const detector::ObjectModel& m) {
-  if (!m.has3d()) return 0;
-  const auto& c = m.target->corners_o;
-  return 0.5 * std::max((c[1] - c[0]).norm(), (c[3] - c[0]).norm());
+  double len = 0;
+  for (const std::array<Eigen::Vector3d, 4>& c : patternQuads(m))
+    len = std::max(len, 0.5 * std::max((c[1] - c[0]).norm(), (c[3] - c[0]).norm()));
+  return len;
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 #include <stdexcept>
 
 #include "core/error.h"
+#include "servo/surface_model.h"
 
 namespace refgrasp::servo {
 
@@ -30,19 +31,22 @@ void OracleOptions::check() const {
 OracleEstimator::OracleEstimator(const detector::ObjectModel& object, const OracleOptions& o)
     : name_(object.name), opt_(o) {
   opt_.check();
-  if (!object.has3d())
+  if (!object.hasPose())
     throw std::invalid_argument("OracleEstimator: object '" + object.name +
                                 "' has no reference pose (2D only)");
-  corners_o_ = object.target->corners_o;
-  normal_o_ = (corners_o_[1] - corners_o_[0]).cross(corners_o_[3] - corners_o_[0]).normalized();
+  quads_o_ = patternQuads(object);
 }
 
 bool OracleEstimator::visible(const Pose& cMo, const Intrinsics& cam,
                               std::array<Eigen::Vector2d, 4>* corners) const {
+  // Several views: the one seen most squarely.
+  const std::array<Eigen::Vector3d, 4> corners_o = *facingQuad(quads_o_, cMo);
+  const Eigen::Vector3d normal_o =
+      (corners_o[1] - corners_o[0]).cross(corners_o[3] - corners_o[0]).normalized();
   std::array<Eigen::Vector2d, 4> px;
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();
   for (size_t i = 0; i < 4; ++i) {
-    const Eigen::Vector3d c = cMo * corners_o_[i];
+    const Eigen::Vector3d c = cMo * corners_o[i];
     if (c.z() < 0.05) return false;
     px[i] = cam.project(c);
     centre += 0.25 * c;
@@ -52,7 +56,7 @@ bool OracleEstimator::visible(const Pose& cMo, const Intrinsics& cam,
   }
   // The pattern is seen from its front (the planar convention: z_o points away from a viewer of
   // the texture, along the line of sight) and not too obliquely.
-  const Eigen::Vector3d n = cMo.R * normal_o_;
+  const Eigen::Vector3d n = cMo.R * normal_o;
   const double cos_view = n.dot(centre.normalized());
   if (cos_view < std::cos(opt_.max_view_angle_rad)) return false;
   for (size_t i = 0; i < 4; ++i)

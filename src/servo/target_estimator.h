@@ -15,6 +15,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <Eigen/Core>
 
@@ -71,8 +72,9 @@ struct OracleOptions {
 /// truth does not need one); lost when not visible or when the frame carries no truth for it.
 class OracleEstimator : public TargetEstimator {
  public:
-  /// \param object the target's definition (its pattern corners); its name must match the
-  /// frame's truth entries. Throws std::invalid_argument for a 2D-only object or bad options.
+  /// \param object the target's definition (its pattern corners; several views: the view seen
+  /// most squarely counts); its name must match the frame's truth entries. Throws
+  /// std::invalid_argument for a 2D-only object or bad options.
   OracleEstimator(const detector::ObjectModel& object, const OracleOptions& options = {});
   TargetObservation observe(const robot::StereoFrame& frame, const StereoRig& rig,
                             const std::optional<Pose>& prior_cMo) override;
@@ -85,8 +87,7 @@ class OracleEstimator : public TargetEstimator {
 
  private:
   std::string name_;
-  std::array<Eigen::Vector3d, 4> corners_o_;
-  Eigen::Vector3d normal_o_;
+  std::vector<std::array<Eigen::Vector3d, 4>> quads_o_;  ///< patternQuads (one per view)
   OracleOptions opt_;
 };
 

@@ -5,6 +5,8 @@
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
+#include "servo/surface_model.h"
+
 namespace refgrasp::servo {
 
 const char* toString(TrackMode m) {
@@ -59,10 +61,12 @@ std::optional<Pose> transportPose(const Pose& c1Mo, const robot::CaptureState& f
   return w2.inverse() * w1 * c1Mo;
 }
 
-std::array<Eigen::Vector2d, 4> projectPattern(const detector::ObjectModel& object, const Pose& cMo,
-                                              const Intrinsics& camera) {
+std::optional<std::array<Eigen::Vector2d, 4>> projectPattern(const detector::ObjectModel& object,
+                                                             const Pose& cMo, const Intrinsics& camera) {
+  const std::optional<std::array<Eigen::Vector3d, 4>> q = facingQuad(patternQuads(object), cMo);
+  if (!q) return std::nullopt;
   std::array<Eigen::Vector2d, 4> px;
-  for (size_t i = 0; i < 4; ++i) px[i] = camera.project(cMo * object.target->corners_o[i]);
+  for (size_t i = 0; i < 4; ++i) px[i] = camera.project(cMo * (*q)[i]);
   return px;
 }
 
@@ -117,8 +121,8 @@ struct TargetTracker::Impl {
     if (!f && opt.track) f = planarTrackerFactory(opt.tracker, &det);
     for (int id = 0; id < det.objectCount(); ++id) {
       Target t;
-      // Only 3D objects can be tracked (the tracker needs a pose).
-      if (f && opt.track && det.object(id).has3d()) t.tracker[0] = f(det.object(id));
+      // Only objects whose detections give a pose can be tracked (the tracker starts from it).
+      if (f && opt.track && det.object(id).hasPose()) t.tracker[0] = f(det.object(id));
       targets.push_back(std::move(t));
     }
     factory = std::move(f);
@@ -241,7 +245,7 @@ struct TargetTracker::Impl {
         o.lMo = f.lMo;
         o.eyes = f.eyes;
         // 2D-only objects: the eyes that saw them, without a pose (as Detector::detectStereo).
-        if (!det.object(id).has3d() && f.eyes == detector::EyesUsed::kNone) {
+        if (!det.object(id).hasPose() && f.eyes == detector::EyesUsed::kNone) {
           if (o.eye[0].found && o.eye[1].found) o.eyes = detector::EyesUsed::kBoth;
           else if (o.eye[0].found) o.eyes = detector::EyesUsed::kLeft;
           else if (o.eye[1].found) o.eyes = detector::EyesUsed::kRight;
@@ -356,7 +360,7 @@ struct TargetTracker::Impl {
       const auto& tr = tracked[static_cast<size_t>(id)];
       const detector::ObjectModel& model = det.object(id);
       const bool detected = d.eyes != detector::EyesUsed::kNone &&
-                            (d.lMo.has_value() || !model.has3d());
+                            (d.lMo.has_value() || !model.hasPose());
       if (detected) {
         // Agreement with the previous pose brought to this frame: tracked, or predicted (by the
         // camera motion, or by the last motion, or unmoved: a sudden stop is no disagreement).
@@ -424,7 +428,7 @@ struct TargetTracker::Impl {
       s.agreeing_detections = s.mode == TrackMode::kLost ? 0 : t.agree;
       if (s.mode == TrackMode::kDetect && s.detection.found)
         s.corners = s.detection.corners;
-      else if (s.cMo && model.has3d())
+      else if (s.cMo)
         s.corners = projectPattern(model, *s.cMo, eyes[0].camera);
     }
     return r;

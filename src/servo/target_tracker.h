@@ -139,8 +139,11 @@ class TargetTracker {
 std::optional<Pose> transportPose(const Pose& c1Mo, const robot::CaptureState& from,
                                   const robot::CaptureState& to);
 
-/// The pattern corners of a 3D object (object frame, metres) projected with cMo into `camera`.
-std::array<Eigen::Vector2d, 4> projectPattern(const detector::ObjectModel& object, const Pose& cMo,
-                                              const Intrinsics& camera);
+/// The pattern corners (TL, TR, BR, BL) of an object with a pose projected with cMo into
+/// `camera`: a planar object's, a cylinder's flat label on its tangent plane, or the view a
+/// several-view object shows most squarely (servo/surface_model.h facingQuad). Empty for a
+/// 2D-only object.
+std::optional<std::array<Eigen::Vector2d, 4>> projectPattern(const detector::ObjectModel& object,
+                                                             const Pose& cMo, const Intrinsics& camera);
 
 }  // namespace refgrasp::servo

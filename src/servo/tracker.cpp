@@ -1,13 +1,15 @@
 #include "servo/tracker.h"
 
 #include <algorithm>
+#include <memory>
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 #include <opencv2/video/tracking.hpp>
+#include <utility>
 
-#include "core/geometry.h"
 #include "detector/pose.h"
+#include "servo/surface_model.h"
 #include "servo/tracker_mbt.h"
 
 namespace refgrasp::servo {
@@ -28,6 +30,8 @@ void TrackerOptions::check() const {
   need(std::isfinite(min_visible_fraction) && min_visible_fraction >= 0 && min_visible_fraction <= 1,
        "min_visible_fraction", "must be in [0, 1]");
   need(max_features >= min_features, "max_features", "must be >= min_features");
+  need(std::isfinite(seed_min_facing_cos) && seed_min_facing_cos >= 0 && seed_min_facing_cos < 1,
+       "seed_min_facing_cos", "must be in [0, 1)");
   need(std::isfinite(feature_quality) && feature_quality > 0 && feature_quality < 1,
        "feature_quality", "must be in (0, 1)");
   need(std::isfinite(feature_min_distance_px) && feature_min_distance_px >= 1,
@@ -47,6 +51,10 @@ void TrackerOptions::check() const {
   need(std::isfinite(reseed_fraction) && reseed_fraction >= 0 && reseed_fraction <= 1,
        "reseed_fraction", "must be in [0, 1]");
   need(pose_iterations >= 1 && pose_iterations <= 100, "pose_iterations", "must be 1..100");
+  need(std::isfinite(appearance_search_px) && appearance_search_px >= 1 && appearance_search_px <= 50,
+       "appearance_search_px", "must be 1..50");
+  need(std::isfinite(appearance_min_score) && appearance_min_score >= 0 && appearance_min_score <= 1,
+       "appearance_min_score", "must be 0..1");
   need(max_unaligned_frames >= 1, "max_unaligned_frames", "must be >= 1");
   need(std::isfinite(klt_max_error) && klt_max_error > 0, "klt_max_error", "must be > 0");
   need(std::isfinite(min_aligned_fraction) && min_aligned_fraction >= 0 && min_aligned_fraction <= 1,
@@ -61,86 +69,47 @@ void TrackerOptions::check() const {
 
 namespace {
 
-/// The pattern polygon on its plane, object frame (metres), from the reference polygon.
-std::vector<Eigen::Vector3d> patternPolygonObject(const detector::ObjectModel& object) {
-  std::vector<Eigen::Vector3d> poly;
-  for (const Eigen::Vector2d& px : object.pattern_polygon_px) {
-    const Eigen::Vector2d und = object.camera ? object.camera->undistortPixel(px) : px;
-    const std::optional<Eigen::Vector3d> X = object.target->backProject(und);
-    if (!X) throw std::invalid_argument(object.name + ": pattern polygon vertex off the pattern plane");
-    poly.push_back(*X);
-  }
-  return poly;
-}
-
-/// Projected polygon (distorted image px); empty when a vertex is behind the camera.
-std::vector<Eigen::Vector2d> projectPolygon(const std::vector<Eigen::Vector3d>& poly_o,
-                                            const Pose& cMo, const Intrinsics& cam) {
-  std::vector<Eigen::Vector2d> px;
-  px.reserve(poly_o.size());
-  for (const Eigen::Vector3d& X : poly_o) {
-    const Eigen::Vector3d Xc = cMo * X;
-    if (!(Xc.z() > 1e-6)) return {};
-    px.push_back(cam.project(Xc));
-  }
-  return px;
-}
-
-double visibleFractionOf(const std::vector<Eigen::Vector3d>& poly_o, const Pose& cMo,
-                         const Intrinsics& cam) {
-  const std::vector<Eigen::Vector2d> px = projectPolygon(poly_o, cMo, cam);
-  if (px.size() < 3) return 0;
-  const double area = std::abs(signedArea(px));
-  if (!(area > 1e-9)) return 0;
-  const std::vector<Eigen::Vector2d> in =
-      clipToBox(px, Eigen::Vector2d(-0.5, -0.5), Eigen::Vector2d(cam.width - 0.5, cam.height - 0.5));
-  return in.size() < 3 ? 0 : std::min(1.0, std::abs(signedArea(in)) / area);
-}
-
-/// Point on the pattern plane (object frame) seen at distorted pixel px with pose cMo.
-std::optional<Eigen::Vector3d> backProjectToPlane(const detector::ObjectModel& object,
-                                                  const Pose& cMo, const Intrinsics& cam,
-                                                  const Eigen::Vector2d& px) {
-  const Eigen::Vector2d xn = cam.undistortToNormalized(px);
-  const Eigen::Vector3d ray_c(xn.x(), xn.y(), 1);
-  // Plane n.X_o = d in the camera frame: n_c = R n, d_c = d + n_c . t.
-  const Eigen::Vector3d n_c = cMo.R * object.plane_normal_o;
-  const double d_c = object.plane_offset_m + n_c.dot(cMo.t);
-  const double den = n_c.dot(ray_c);
-  if (std::abs(den) < 1e-9) return std::nullopt;
-  const double s = d_c / den;
-  if (!(s > 1e-6)) return std::nullopt;
-  return cMo.inverse() * (s * ray_c);
-}
-
 std::string lostLine(const char* what, double value, const char* op, double limit) {
   char buf[128];
   std::snprintf(buf, sizeof buf, "%s (%.3g %s %.3g)", what, value, op, limit);
   return buf;
 }
 
-/// KLT features anchored on the pattern plane + robust pose (TrackerMethod::kKlt).
-class KltPlanarTracker : public FrameTracker {
+/// The detector's alignment (Detector::alignPose) aligns a planar pattern with its reference
+/// image; a cylinder's label or several views have no such single plane.
+bool alignable(const detector::ObjectModel& object) {
+  return object.has3d() && !object.isCylinder() && !object.isMultiView();
+}
+
+/// A frame features were seeded in, and the pose they were anchored with.
+struct SeenIn {
+  cv::Mat gray;
+  Pose cMo;
+};
+
+/// KLT features anchored on the object's textured surfaces + robust pose (TrackerMethod::kKlt).
+class KltTracker : public FrameTracker {
  public:
-  KltPlanarTracker(const detector::ObjectModel& object, const TrackerOptions& opt, PoseAligner align)
-      : object_(object), opt_(opt), align_(opt.align_to_reference ? std::move(align) : nullptr),
-        poly_o_(patternPolygonObject(object)) {
-  }
+  KltTracker(const detector::ObjectModel& object, const TrackerOptions& opt, PoseAligner align)
+      : opt_(opt), align_(opt.align_to_reference && alignable(object) ? std::move(align) : nullptr),
+        surfaces_(object) {}
 
   TrackStep start(const cv::Mat& gray, const Intrinsics& cam, const Pose& cMo) override {
     try {
       running_ = false;
       X_o_.clear();
+      n_o_.clear();
+      seen_.clear();
       TrackStep s;
       s.cMo = cMo;
-      s.quality.visible_fraction = visibleFractionOf(poly_o_, cMo, cam);
+      s.quality.visible_fraction = surfaces_.visibleFraction(cMo, cam);
       if (!cMo.isFinite() || s.quality.visible_fraction < opt_.min_visible_fraction) {
         s.lost_reason = lostLine("pattern out of view", s.quality.visible_fraction, "<",
                                  opt_.min_visible_fraction);
         return s;
       }
       std::vector<cv::Point2f> pts;
-      seed(gray, cam, cMo, &pts, &X_o_);
+      seed(gray, cam, cMo, &pts, &X_o_, &n_o_, &seen_);
       std::vector<long> ids(pts.size());
       for (size_t i = 0; i < ids.size(); ++i) ids[i] = static_cast<long>(i);
       next_id_ = static_cast<long>(ids.size());
@@ -184,23 +153,14 @@ class KltPlanarTracker : public FrameTracker {
   }
 
  private:
-  /// Features (goodFeaturesToTrack) inside the projected pattern shrunk by the border, at least
-  /// feature_min_distance_px from `keep`; their points on the pattern plane by pose cMo.
+  /// Features (goodFeaturesToTrack) inside the projected textured surfaces facing the camera,
+  /// shrunk by the border, at least feature_min_distance_px from `keep`; their points on the
+  /// surfaces by pose cMo.
   void seed(const cv::Mat& gray, const Intrinsics& cam, const Pose& cMo,
             std::vector<cv::Point2f>* pts, std::vector<Eigen::Vector3d>* X,
+            std::vector<Eigen::Vector3d>* normals, std::vector<std::shared_ptr<const SeenIn>>* seen,
             const std::vector<cv::Point2f>& keep = {}, int wanted = -1) const {
-    const std::vector<Eigen::Vector2d> poly = projectPolygon(poly_o_, cMo, cam);
-    if (poly.size() < 3) return;
-    cv::Mat mask = cv::Mat::zeros(gray.size(), CV_8UC1);
-    std::vector<cv::Point> p;
-    for (const auto& v : poly) p.emplace_back(cvRound(v.x()), cvRound(v.y()));
-    cv::fillPoly(mask, std::vector<std::vector<cv::Point>>{p}, cv::Scalar(255));
-    const int border = static_cast<int>(std::ceil(opt_.pattern_border_px));
-    if (border > 0) {
-      cv::erode(mask, mask, cv::getStructuringElement(cv::MORPH_RECT, {2 * border + 1, 2 * border + 1}));
-      // Also keep off the image border (KLT windows there are truncated).
-      cv::rectangle(mask, cv::Rect(0, 0, mask.cols, mask.rows), cv::Scalar(0), border);
-    }
+    cv::Mat mask = surfaces_.mask(cMo, cam, opt_.pattern_border_px, opt_.seed_min_facing_cos);
     const int r = static_cast<int>(std::ceil(opt_.feature_min_distance_px));
     for (const cv::Point2f& k : keep) cv::circle(mask, k, r, cv::Scalar(0), cv::FILLED);
     std::vector<cv::Point2f> found;
@@ -209,13 +169,17 @@ class KltPlanarTracker : public FrameTracker {
     cv::goodFeaturesToTrack(gray, found, n, opt_.feature_quality, opt_.feature_min_distance_px, mask, 7,
                             false, 0.04);
     if (found.empty()) return;
+    const std::shared_ptr<const SeenIn> frame =
+        align_ ? nullptr : std::make_shared<const SeenIn>(SeenIn{gray.clone(), cMo});
     cv::cornerSubPix(gray, found, cv::Size(5, 5), cv::Size(-1, -1),
                      cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 0.03));
     for (const cv::Point2f& f : found) {
-      const auto Xo = backProjectToPlane(object_, cMo, cam, Eigen::Vector2d(f.x, f.y));
-      if (!Xo) continue;
+      const std::optional<SurfaceHit> hit = surfaces_.intersect(cMo, cam, Eigen::Vector2d(f.x, f.y));
+      if (!hit) continue;
       pts->push_back(f);
-      X->push_back(*Xo);
+      X->push_back(hit->X_o);
+      normals->push_back(hit->n_o);
+      seen->push_back(frame);
     }
   }
 
@@ -331,12 +295,25 @@ class KltPlanarTracker : public FrameTracker {
         X.push_back(X_o_[i]);
         y.push_back(cam.undistortPixel(Eigen::Vector2d(next[i].x, next[i].y)));
       }
+    fitPose(X, y, cam, predicted, &m);
+    return m;
+  }
+
+  /// Robust pose of the pairs (X, y) from `start`, then the pairs within the inlier threshold
+  /// (m->inlier, Xi, yi, inliers, pose_ok, cMo).
+  void fitPose(const std::vector<Eigen::Vector3d>& X, const std::vector<Eigen::Vector2d>& y,
+               const Intrinsics& cam, const Pose& start, Measurement* out) const {
+    Measurement& m = *out;
     m.inlier.assign(X.size(), 0);
-    if (static_cast<int>(X.size()) < opt_.min_features) return m;
+    m.Xi.clear();
+    m.yi.clear();
+    m.inliers = 0;
+    m.pose_ok = false;
+    if (static_cast<int>(X.size()) < opt_.min_features) return;
     // Robust pose from the prediction, then the survivors within the inlier threshold.
     const Eigen::Matrix3d K = cam.K();
-    detector::PoseResult pr = detector::refinePoseLM(X, y, K, predicted, opt_.pose_iterations, 1.0);
-    if (!pr.ok || !pr.cMo.isFinite()) return m;
+    detector::PoseResult pr = detector::refinePoseLM(X, y, K, start, opt_.pose_iterations, 1.0);
+    if (!pr.ok || !pr.cMo.isFinite()) return;
     for (size_t i = 0; i < X.size(); ++i) {
       const Eigen::Vector2d r = detector::projectPinhole(K, pr.cMo * X[i]) - y[i];
       if (r.norm() < opt_.inlier_threshold_px) {
@@ -352,7 +329,71 @@ class KltPlanarTracker : public FrameTracker {
     }
     m.pose_ok = true;
     m.cMo = pr.cMo;
-    return m;
+  }
+
+  /// Where feature f (KLT position p) lies in `gray` by its appearance in the frame it was seeded
+  /// in, warped to the pose cMo through its tangent plane there, found by normalised correlation
+  /// within appearance_search_px of p. Empty when the match is weak, on the search area's edge,
+  /// or the window leaves either image.
+  std::optional<cv::Point2f> appearanceMatch(const cv::Mat& gray, const Intrinsics& cam, const Pose& cMo,
+                                             size_t f, const cv::Point2f& p) const {
+    const SeenIn& seen = *seen_[f];
+    const Eigen::Vector3d& X = X_o_[f];
+    const Eigen::Vector3d Xs = seen.cMo * X, Xc = cMo * X;
+    if (!(Xs.z() > 1e-6) || !(Xc.z() > 1e-6)) return std::nullopt;
+    const int half = opt_.klt_window_px / 2, r = static_cast<int>(std::ceil(opt_.appearance_search_px));
+    // Four points on the tangent plane half a window from X (in the seeding image).
+    const Eigen::Vector3d e1 = n_o_[f].unitOrthogonal(), e2 = n_o_[f].cross(e1);
+    const double a = half * Xs.z() / cam.fx;
+    std::vector<cv::Point2f> from, to;
+    for (const auto& [s1, s2] : {std::pair{-1, -1}, {1, -1}, {1, 1}, {-1, 1}}) {
+      const Eigen::Vector3d P = X + a * (s1 * e1 + s2 * e2);
+      const Eigen::Vector3d Ps = seen.cMo * P, Pc = cMo * P;
+      if (!(Ps.z() > 1e-6) || !(Pc.z() > 1e-6)) return std::nullopt;
+      const Eigen::Vector2d qs = cam.project(Ps), qc = cam.project(Pc);
+      from.emplace_back(static_cast<float>(qs.x()), static_cast<float>(qs.y()));
+      to.emplace_back(static_cast<float>(qc.x()), static_cast<float>(qc.y()));
+    }
+    const Eigen::Vector2d c0 = cam.project(Xc);
+    cv::Mat H = cv::getPerspectiveTransform(from, to);  // seeding image -> this image
+    const cv::Matx33d shift(1, 0, half - c0.x(), 0, 1, half - c0.y(), 0, 0, 1);
+    cv::Mat tmpl;
+    cv::warpPerspective(seen.gray, tmpl, cv::Mat(shift) * H, cv::Size(2 * half + 1, 2 * half + 1),
+                        cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+    const cv::Rect roi(cvRound(p.x) - half - r, cvRound(p.y) - half - r, 2 * (half + r) + 1,
+                       2 * (half + r) + 1);
+    if ((roi & cv::Rect(0, 0, gray.cols, gray.rows)) != roi) return std::nullopt;
+    cv::Mat score;
+    cv::matchTemplate(gray(roi), tmpl, score, cv::TM_CCOEFF_NORMED);
+    double best = 0;
+    cv::Point at;
+    cv::minMaxLoc(score, nullptr, &best, nullptr, &at);
+    if (!(best >= opt_.appearance_min_score) || at.x == 0 || at.y == 0 || at.x == score.cols - 1 ||
+        at.y == score.rows - 1)
+      return std::nullopt;
+    const auto sub = [](float l, float c, float rr) {
+      const float d = l - 2 * c + rr;
+      return std::abs(d) > 1e-6f ? std::clamp(0.5f * (l - rr) / d, -0.5f, 0.5f) : 0.f;
+    };
+    const float dx = sub(score.at<float>(at.y, at.x - 1), score.at<float>(at.y, at.x), score.at<float>(at.y, at.x + 1));
+    const float dy = sub(score.at<float>(at.y - 1, at.x), score.at<float>(at.y, at.x), score.at<float>(at.y + 1, at.x));
+    return cv::Point2f(static_cast<float>(roi.x + at.x + half) + dx, static_cast<float>(roi.y + at.y + half) + dy);
+  }
+
+  /// Without an aligner: the features KLT kept, each moved to where its seeding appearance is
+  /// (appearanceMatch), and the pose again from them. KLT follows a window from frame to frame
+  /// and slides a little each time (noise, blur, the window's change of shape as the surface
+  /// turns); the seeding appearance warped by the model does not accumulate that.
+  void rematch(const cv::Mat& gray, const Intrinsics& cam, Measurement* m) const {
+    std::vector<Eigen::Vector3d> X;
+    std::vector<Eigen::Vector2d> y;
+    for (size_t i = 0; i < m->feature.size(); ++i) {
+      const size_t f = m->feature[i];
+      if (const std::optional<cv::Point2f> q = appearanceMatch(gray, cam, m->cMo, f, m->pts[i])) m->pts[i] = *q;
+      X.push_back(X_o_[f]);
+      y.push_back(cam.undistortPixel(Eigen::Vector2d(m->pts[i].x, m->pts[i].y)));
+    }
+    fitPose(X, y, cam, m->cMo, m);
   }
 
   TrackStep step(const cv::Mat& gray, const Intrinsics& cam, const Pose& predicted) {
@@ -367,13 +408,18 @@ class KltPlanarTracker : public FrameTracker {
     }
     std::vector<cv::Mat> pyr;
     pyramid(gray, &pyr);
-    Measurement m = measure(pyr, guess, opt_.klt_pyramid_levels, cam, predicted);
+    // The pose is solved from the prediction when an alignment follows; without one, from the last
+    // pose: the features of a small target barely observe some directions (its depth against
+    // its tilt), the solution lands anywhere along them near its start, and a prediction by the
+    // last motion would extrapolate that error frame after frame.
+    const Pose& start = align_ ? predicted : cMo_;
+    Measurement m = measure(pyr, guess, opt_.klt_pyramid_levels, cam, start);
     // A poor prediction (a sudden change of motion) needs the coarser levels, or the shift the
     // prediction missed measured on the whole pattern region at once (a partly hidden or partly
     // out-of-view pattern leaves coarse KLT windows to the background).
     if (2 * m.inliers < static_cast<int>(ids_.size()) &&
         opt_.klt_retry_pyramid_levels > opt_.klt_pyramid_levels) {
-      Measurement again = measure(pyr, guess, opt_.klt_retry_pyramid_levels, cam, predicted);
+      Measurement again = measure(pyr, guess, opt_.klt_retry_pyramid_levels, cam, start);
       if (again.inliers > m.inliers) m = std::move(again);
     }
     if (2 * m.inliers < static_cast<int>(ids_.size()) && opt_.shift_retry) {
@@ -391,6 +437,11 @@ class KltPlanarTracker : public FrameTracker {
       }
     }
     prev_pyr_ = pyr;
+    if (!align_ && opt_.appearance_match && m.pose_ok) {
+      Measurement again = m;
+      rematch(gray, cam, &again);
+      if (again.pose_ok) m = std::move(again);
+    }
     if (!m.pose_ok || m.inliers < opt_.min_features) {
       s.quality.features = m.inliers;
       s.lost_reason = lostLine("too few features", m.inliers, "<", opt_.min_features);
@@ -426,21 +477,27 @@ class KltPlanarTracker : public FrameTracker {
     s.cMo = pr.cMo;
     s.quality.features = static_cast<int>(Xi.size());
     s.quality.projection_error_px = Xi.empty() ? 0 : std::sqrt(sq / static_cast<double>(Xi.size()));
-    s.quality.visible_fraction = visibleFractionOf(poly_o_, s.cMo, cam);
+    s.quality.visible_fraction = surfaces_.visibleFraction(s.cMo, cam);
 
     // Keep the inliers only; after an alignment, re-anchored on the aligned pose.
     std::vector<cv::Point2f> kept_pts;
     std::vector<long> kept_ids;
-    std::vector<Eigen::Vector3d> kept_X;
+    std::vector<Eigen::Vector3d> kept_X, kept_n;
+    std::vector<std::shared_ptr<const SeenIn>> kept_seen;
     for (size_t i = 0; i < m.feature.size(); ++i) {
       if (!m.inlier[i]) continue;
       std::optional<Eigen::Vector3d> Xo = X_o_[m.feature[i]];
-      if (s.quality.aligned)
-        Xo = backProjectToPlane(object_, s.cMo, cam, Eigen::Vector2d(m.pts[i].x, m.pts[i].y));
+      if (s.quality.aligned) {
+        const std::optional<SurfaceHit> hit =
+            surfaces_.intersect(s.cMo, cam, Eigen::Vector2d(m.pts[i].x, m.pts[i].y));
+        Xo = hit ? std::optional<Eigen::Vector3d>(hit->X_o) : std::nullopt;
+      }
       if (!Xo) continue;
       kept_pts.push_back(m.pts[i]);
       kept_ids.push_back(ids_[m.feature[i]]);
       kept_X.push_back(*Xo);
+      kept_n.push_back(n_o_[m.feature[i]]);
+      kept_seen.push_back(seen_[m.feature[i]]);
     }
 
     if (s.quality.features < opt_.min_features) {
@@ -465,33 +522,41 @@ class KltPlanarTracker : public FrameTracker {
     }
     if (!s.ok) return s;
 
-    // Re-seed in the visible pattern when too few features are left.
+    // Re-seed in the visible pattern when too few features are left (on a box, the faces that
+    // came into view).
     if (static_cast<int>(kept_pts.size()) < opt_.reseed_fraction * opt_.max_features) {
       std::vector<cv::Point2f> more;
-      std::vector<Eigen::Vector3d> more_X;
-      seed(gray, cam, s.cMo, &more, &more_X, kept_pts,
+      std::vector<Eigen::Vector3d> more_X, more_n;
+      std::vector<std::shared_ptr<const SeenIn>> more_seen;
+      seed(gray, cam, s.cMo, &more, &more_X, &more_n, &more_seen, kept_pts,
            opt_.max_features - static_cast<int>(kept_pts.size()));
       for (size_t i = 0; i < more.size(); ++i) {
         kept_pts.push_back(more[i]);
         kept_ids.push_back(next_id_++);
         kept_X.push_back(more_X[i]);
+        kept_n.push_back(more_n[i]);
+        kept_seen.push_back(more_seen[i]);
       }
       started_ = static_cast<int>(kept_pts.size());
     }
     pts_ = kept_pts;
     ids_ = kept_ids;
     X_o_ = kept_X;
+    n_o_ = kept_n;
+    seen_ = kept_seen;
     return s;
   }
 
-  const detector::ObjectModel& object_;
   TrackerOptions opt_;
-  PoseAligner align_;
-  std::vector<Eigen::Vector3d> poly_o_;
+  PoseAligner align_;  ///< empty: KLT alone (no aligner given, or the object is not one plane)
+  SurfaceModel surfaces_;
   std::vector<cv::Mat> prev_pyr_;      ///< LK pyramid of the previous frame
   std::vector<cv::Point2f> pts_;       ///< feature positions in the previous frame
   std::vector<long> ids_;              ///< KLT ids of the features, in KLT order
-  std::vector<Eigen::Vector3d> X_o_;   ///< their points on the pattern plane, object frame
+  std::vector<Eigen::Vector3d> X_o_;   ///< their points on the object's surfaces, object frame
+  std::vector<Eigen::Vector3d> n_o_;   ///< the surfaces' outward normals there, object frame
+  /// The frame each feature was seeded in (without an aligner: appearanceMatch); null otherwise.
+  std::vector<std::shared_ptr<const SeenIn>> seen_;
   long next_id_ = 0;
   int started_ = 0;
   int unaligned_ = 0;  ///< frames in a row the aligner refused
@@ -502,17 +567,23 @@ class KltPlanarTracker : public FrameTracker {
 }  // namespace
 
 double visibleFraction(const detector::ObjectModel& object, const Pose& cMo, const Intrinsics& camera) {
-  if (!object.has3d()) return 0;
-  return visibleFractionOf(patternPolygonObject(object), cMo, camera);
+  if (!object.hasPose()) return 0;
+  return SurfaceModel(object).visibleFraction(cMo, camera);
 }
 
 std::unique_ptr<FrameTracker> makePlanarTracker(const detector::ObjectModel& object,
                                                 const TrackerOptions& options, PoseAligner align) {
   options.check();
-  if (!object.has3d())
-    throw std::invalid_argument(object.name + ": tracking needs a 3D object (reference_pose)");
-  if (options.method == TrackerMethod::kMbt) return makeMbtTracker(object, options);
-  return std::make_unique<KltPlanarTracker>(object, options, std::move(align));
+  if (!object.hasPose())
+    throw std::invalid_argument(object.name + ": tracking needs a 3D object (reference_pose, cylinder "
+                                              "or views)");
+  if (options.method == TrackerMethod::kMbt) {
+    if (object.isCylinder() || object.isMultiView())
+      throw std::invalid_argument(object.name + ": the mbt tracker follows one planar pattern; use klt "
+                                                "for a cylinder or several views");
+    return makeMbtTracker(object, options);
+  }
+  return std::make_unique<KltTracker>(object, options, std::move(align));
 }
 
 TrackerFactory planarTrackerFactory(const TrackerOptions& options, const detector::Detector* detector) {

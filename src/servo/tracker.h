@@ -1,27 +1,34 @@
 #pragma once
-// Frame-to-frame tracking of one planar object after a detection.
+// Frame-to-frame tracking of one object with a pose after a detection.
 //
 // FrameTracker is the seam: the per-frame pipeline (servo/target_tracker.h) starts a tracker on
 // the frame of a detection at the detected pose and asks it for the pose in each next frame.
-// makePlanarTracker() builds the project's trackers on a detector::ObjectModel (its pattern
-// polygon on its plane, in the object frame):
+// makePlanarTracker() builds the project's trackers on a detector::ObjectModel with a pose: a
+// planar pattern, a label on a cylinder, or an object of several views (its textured surfaces in
+// the object frame: servo/surface_model.h):
 //
-//   kKlt  KLT features (ViSP vpKltOpencv) inside the projected pattern, each anchored to its
-//         point on the pattern plane (object frame); per frame: features moved from the
-//         predicted pose (initial flow), pose by robust (Huber) Levenberg-Marquardt on the 2D-3D
-//         pairs, features beyond inlier_threshold_px dropped; then, with a PoseAligner (the
-//         detector's Detector::alignPose), the pose is aligned photometrically with the
-//         object's reference image and the features re-anchored on it, so that the pose does
-//         not drift; features are re-seeded in the visible pattern when too few are left.
+//   kKlt  KLT features (OpenCV's pyramidal Lucas-Kanade, as ViSP's vpKltOpencv) inside the
+//         projected textured surfaces that face the camera, each anchored to the point of the
+//         surface its pixel's ray meets first (object frame: on the pattern plane, on the can's
+//         label, on the box face it lies on);
+//         per frame: features moved from the predicted pose (initial flow), pose by robust
+//         (Huber) Levenberg-Marquardt on all the 2D-3D pairs, features beyond
+//         inlier_threshold_px dropped; for a planar object with a PoseAligner (the detector's
+//         Detector::alignPose), the pose is then aligned photometrically with the object's
+//         reference image and the features re-anchored on it, so that the pose does not drift
+//         (cylinders and several-view objects: features alone); features are re-seeded in the
+//         visible textured region when too few are left (on a box, the face that came into view).
 //   kMbt  ViSP's vpMbGenericTracker (KLT, optionally + moving edges on the pattern outline) on a
-//         one-face model built from the pattern polygon, initialised with initFromPose.
+//         one-face model built from the pattern polygon, initialised with initFromPose; planar
+//         objects only (a cylinder or several views: std::invalid_argument at start-up).
 //
 // Quality per frame: surviving features and their RMS projection error, the fraction of the
-// pattern projected inside the image and, with the aligner, the fraction of the reference it
-// found in view and unoccluded (robust ECC: occluded blocks left out). The tracker reports "lost"
-// when one of them falls past its threshold (TrackerOptions), when the aligner refuses
-// max_unaligned_frames frames in a row (features that slid onto an occluder's edge can agree on
-// a wrong pose; the reference does not), or the pose is not finite/in front of the camera.
+// textured surfaces facing the camera projected inside the image and, with the aligner, the
+// fraction of the reference it found in view and unoccluded (robust ECC: occluded blocks left
+// out). The tracker reports "lost" when one of them falls past its threshold (TrackerOptions),
+// when the aligner refuses max_unaligned_frames frames in a row (features that slid onto an
+// occluder's edge can agree on a wrong pose; the reference does not), or the pose is not
+// finite/in front of the camera.
 //
 // Frames and units: cMo = object frame in the camera frame of the image tracked (metres,
 // radians); images 8-bit gray of the camera's size; pixels with the centre of the top-left pixel
@@ -73,13 +80,13 @@ class FrameTracker {
                           const std::optional<Pose>& predicted_cMo = std::nullopt) = 0;
 };
 
-/// A tracker for an object (3D objects only).
+/// A tracker for an object (objects with a pose only).
 using TrackerFactory =
     std::function<std::unique_ptr<FrameTracker>(const detector::ObjectModel& object)>;
 
 enum class TrackerMethod {
-  kKlt,  ///< vpKltOpencv features anchored on the pattern plane + robust pose (default)
-  kMbt,  ///< vpMbGenericTracker on the pattern polygon (KLT, + edges with mbt_edges)
+  kKlt,  ///< KLT features anchored on the object's surfaces + robust pose (default)
+  kMbt,  ///< vpMbGenericTracker on the pattern polygon (KLT, + edges with mbt_edges); planar only
 };
 const char* trackerMethodName(TrackerMethod m);  ///< "klt", "mbt"
 
@@ -89,9 +96,14 @@ struct TrackerOptions {
   int min_features = 12;                ///< lost below this many surviving features
   double min_feature_fraction = 0.2;    ///< lost when fewer than this x features_started survive
   double max_projection_error_px = 2.0; ///< lost when the RMS error of the survivors is larger
-  double min_visible_fraction = 0.2;    ///< lost when less of the pattern projects in the image
+  double min_visible_fraction = 0.2;    ///< lost when less of the textured surface facing the camera
+                                        ///< projects in the image
   // KLT features.
   int max_features = 200;               ///< seeded in the projected pattern
+  /// Features are seeded only where a surface faces the camera by more than this (cos of the
+  /// angle between its outward normal and the ray to the camera; 0.26: within 75 deg): a texture
+  /// seen at grazing angles is compressed into a few pixels and its features slide.
+  double seed_min_facing_cos = 0.26;
   double feature_quality = 0.01;        ///< goodFeaturesToTrack quality level
   double feature_min_distance_px = 8;
   int klt_window_px = 15;               ///< odd, >= 5
@@ -115,6 +127,14 @@ struct TrackerOptions {
   /// Re-seed features in the visible pattern when fewer than this x max_features are left.
   double reseed_fraction = 0.5;
   int pose_iterations = 10;             ///< robust LM iterations per frame
+  /// Without an aligner (KLT alone, a cylinder, several views): each feature is moved to where
+  /// its appearance in the frame it was seeded in, warped to the pose through its tangent plane,
+  /// correlates best within appearance_search_px of where KLT put it (correlation 0..1 at least
+  /// appearance_min_score, else KLT's position stays), and the pose is solved again; KLT alone
+  /// slides a little every frame and the pose drifts with it.
+  bool appearance_match = true;
+  double appearance_search_px = 3;
+  double appearance_min_score = 0.7;
   bool mbt_edges = false;               ///< kMbt: add moving edges on the pattern outline
   bool align_to_reference = true;       ///< kKlt: align each pose with the reference (if given)
   /// The alignment is refused when a pattern corner moves more (corners out of the view move
@@ -137,8 +157,9 @@ struct TrackerOptions {
 using PoseAligner = std::function<detector::PoseAlignment(const cv::Mat& gray, const Intrinsics& camera,
                                                           const Pose& cMo)>;
 
-/// The project's tracker for `object` (throws std::invalid_argument for a 2D-only object or bad
-/// options: start-up). align: see TrackerMethod::kKlt (nullptr: KLT alone).
+/// The project's tracker for `object` (throws std::invalid_argument for a 2D-only object, kMbt on
+/// a non-planar object, or bad options: start-up). align: see TrackerMethod::kKlt (nullptr: KLT
+/// alone; not used for a cylinder or several views).
 std::unique_ptr<FrameTracker> makePlanarTracker(const detector::ObjectModel& object,
                                                 const TrackerOptions& options = {},
                                                 PoseAligner align = nullptr);
@@ -148,8 +169,7 @@ std::unique_ptr<FrameTracker> makePlanarTracker(const detector::ObjectModel& obj
 TrackerFactory planarTrackerFactory(const TrackerOptions& options = {},
                                     const detector::Detector* detector = nullptr);
 
-/// Fraction of the pattern polygon's area (object frame, via cMo) that projects inside the image
-/// (0 when any vertex is behind the camera).
+/// SurfaceModel::visibleFraction of the object's textured surfaces at cMo (0 for a 2D-only object).
 double visibleFraction(const detector::ObjectModel& object, const Pose& cMo, const Intrinsics& camera);
 
 }  // namespace refgrasp::servo

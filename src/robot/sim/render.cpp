@@ -327,8 +327,9 @@ void checkCylinder(const TexturedCylinder& c) {
 // Bilinear sample of a level-L pyramid image at level-0 coordinates (u, v), border replicated.
 float samplePyramid(const std::vector<cv::Mat>& pyr, int level, double u, double v) {
   const cv::Mat& t = pyr[static_cast<size_t>(level)];
+  // Level `level`'s pixel centres: level-0 pixel u lies at (u + 0.5) / 2^level - 0.5 (cv::pyrDown).
   const double s = std::ldexp(1.0, -level);
-  const double x = std::clamp(u * s, 0.0, t.cols - 1.0), y = std::clamp(v * s, 0.0, t.rows - 1.0);
+  const double x = std::clamp((u + 0.5) * s - 0.5, 0.0, t.cols - 1.0), y = std::clamp((v + 0.5) * s - 0.5, 0.0, t.rows - 1.0);
   const int ix = static_cast<int>(x), iy = static_cast<int>(y);
   const int ix1 = std::min(ix + 1, t.cols - 1), iy1 = std::min(iy + 1, t.rows - 1);
   const float fx = static_cast<float>(x - ix), fy = static_cast<float>(y - iy);
