@@ -24,7 +24,9 @@ instance when there are several):
    "corners":[[u,v] x4 (pattern corners TL,TR,BR,BL, image px)],"R":[9 row-major],"t":[x,y,z],
    "inliers":42,"time_ms":{"extract":..,"match":..,"pose":..,"total":..}}
 R, t: the object frame in the camera frame (cMo, metres); absent for 2D-only objects (no
-reference_pose). With --right/--stereo, R, t are the fused pose in the LEFT camera frame and
+reference_pose). A several-view object (a box's faces) adds "views" (the views fused into
+the instance, most inliers first) and "view" (the one whose homography and corners are given);
+R, t are then its own frame's, jointly over every view seen. With --right/--stereo, R, t are the fused pose in the LEFT camera frame and
 "eyes" says which eyes found the object. found:false lines carry no geometry. With several
 objects or --max-instances > 1 every line has "object" (name) and "instance" (0 = best).
 With lens distortion, homography maps undistorted reference px to undistorted image px.
@@ -56,7 +58,8 @@ int detectObject(int argc, char** argv) {
       ->multi_option_policy(CLI::MultiOptionPolicy::TakeAll);
   app.add_option("--camera", camera_file,
                  "intrinsics of the images (ROS yaml or ViSP xml); default: the first object's "
-                 "reference camera, or an ideal pinhole for 2D-only objects");
+                 "reference camera (a several-view object's: its first view's), or an ideal pinhole "
+                 "for 2D-only objects");
   detector_cli.add(app);
   app.add_option("--right", rights, "right stereo image, one per IMAGE in order (repeat; needs --stereo)")
       ->expected(1)
@@ -95,6 +98,7 @@ int detectObject(int argc, char** argv) {
   for (const auto& f : object_files) {
     const ObjectModel m = loadObjectDefinition(f);
     if (!camera && m.camera) camera = m.camera;
+    if (!camera && m.isMultiView()) camera = m.views[0].model->camera;
     names.push_back(m.name);
     detector->addObject(m);
   }

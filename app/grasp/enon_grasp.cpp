@@ -87,6 +87,8 @@ EnonGraspResult runEnonGraspSession(const EnonGraspOptions& o, std::FILE* progre
   if (target < 0) throw ConfigError(o.scenario, "objects", "no object with target: true");
   const sim::SimObject& goal = scenario.world.objects[static_cast<size_t>(target)];
   const detector::ObjectModel object = detector::loadObjectDefinition(goal.definition);
+  if (object.isMultiView())
+    throw ConfigError(goal.definition, "views", "several-view objects are not tracked, so not grasped");
   if (!object.has3d())
     throw ConfigError(goal.definition, "reference_pose", "required to grasp the object (a 3D pose)");
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();

@@ -10,6 +10,10 @@ Json detectionJson(const Detection& d, Json j) {
   for (const auto& c : d.corners) j["corners"].push_back({c.x(), c.y()});
   if (d.cMo) putPose(&j, *d.cMo);
   j["inliers"] = d.inliers;
+  if (!d.views.empty()) {
+    j["views"] = d.views;
+    j["view"] = d.view;
+  }
   return j;
 }
 

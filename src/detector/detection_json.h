@@ -3,7 +3,9 @@
 // line"), for every tool that writes detections. Field order: the caller's `base` fields (e.g.
 // "image", "right"), "found", then when found "homography" (9 numbers row-major, undistorted
 // reference px -> undistorted image px, H(2,2) = 1), "corners" ([u, v] x 4, TL TR BR BL, image px),
-// "R" and "t" (cMo, core/json.h; only with a pose), "inliers"; stereo lines then "eyes"; tagged
+// "R" and "t" (cMo, core/json.h; only with a pose), "inliers"; for a several-view object then
+// "views" (the names of the views fused into the instance, most inliers first) and "view" (the
+// one whose homography and corners these are); stereo lines then "eyes"; tagged
 // lines "object" (name) and "instance"; last "time_ms" {"extract","match","pose","total"}.
 #include <string>
 #include <vector>

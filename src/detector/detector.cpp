@@ -11,6 +11,7 @@
 #include "detector/cylinder_detection.h"
 #include "detector/detector_internal.h"
 #include "detector/homography.h"
+#include "detector/multiview.h"
 #include "detector/registered_object.h"
 #include "detector/search_region.h"
 
@@ -246,6 +247,7 @@ void DetectorOptions::check() const {
   dense.check();
   sanity.check();
   verify.check();
+  multiview.check();
 }
 
 std::optional<Detection> DetectionResult::find(int object, int instance) const {
@@ -265,12 +267,86 @@ int Detector::objectCount() const { return static_cast<int>(objects_.size()); }
 const ObjectModel& Detector::object(int id) const { return objects_.at(id).model; }
 
 int Detector::addObject(const ObjectModel& object) {
-  if (object.reference.empty() || object.reference.type() != CV_8UC1)
-    throw ConfigError(object.source.empty() ? object.name : object.source, "reference_image",
-                      "expected a non-empty 8-bit grayscale image");
-  objects_.push_back(registerObject(object, opt_));
+  const std::string where = object.source.empty() ? object.name : object.source;
+  auto checkReference = [](const ObjectModel& m, const std::string& at, const std::string& field) {
+    if (m.reference.empty() || m.reference.type() != CV_8UC1)
+      throw ConfigError(at, field, "expected a non-empty 8-bit grayscale image");
+  };
+  std::vector<RegisteredObject> views;
+  if (object.isMultiView()) {
+    for (size_t k = 0; k < object.views.size(); ++k) {
+      const std::string field = "views[" + std::to_string(k) + "].definition";
+      const ObjectModel* view = object.views[k].model.get();
+      if (!view || view->isMultiView() || !(view->has3d() || view->isCylinder()))
+        throw ConfigError(where, field, "a view needs metric geometry (planar with reference_pose, or cylinder)");
+      checkReference(*view, where, field);
+      views.push_back(registerObject(*view, opt_));
+    }
+    RegisteredObject model_only;  // its views are matched, never the object itself
+    model_only.model = object;
+    objects_.push_back(std::move(model_only));
+  } else {
+    checkReference(object, where, "reference_image");
+    objects_.push_back(registerObject(object, opt_));
+  }
+  views_.push_back(std::move(views));
   return static_cast<int>(objects_.size()) - 1;
 }
+
+namespace {
+
+// One object, or one view of a several-view object, as searched in a frame.
+struct Searched {
+  const RegisteredObject* obj;
+  Search search;
+  int extraction;  ///< index into the frame's extractions, -1: nothing extracted
+};
+
+// A several-view object: each view matched and checked as an object of its own (into a result
+// of its own), its instances fused (multiview.h); appends the object's instances (or its
+// not-found entry) and stats to *res and the time spent to res->time_ms. The stats are those of
+// the view giving the best instance's H, or when none was found, of the view that got furthest
+// (MissReason order).
+void detectSeveralViews(const ObjectModel& model, int id, const DetectorOptions& opt,
+                        const std::vector<Searched>& views, const std::vector<Extraction>& extractions,
+                        const Intrinsics& camera, DetectionResult* res) {
+  std::vector<ViewInstance> instances;
+  std::vector<std::string> names;
+  std::vector<DetectionResult> per_view(views.size());
+  for (size_t k = 0; k < views.size(); ++k) {
+    names.push_back(model.views[k].name);
+    const Extraction* x = views[k].extraction >= 0 ? &extractions[static_cast<size_t>(views[k].extraction)] : nullptr;
+    DetectionResult& r = per_view[k];
+    detectObject(*views[k].obj, id, opt, views[k].search, x, camera, &r);
+    res->time_ms.match += r.time_ms.match;
+    res->time_ms.pose += r.time_ms.pose;
+    const auto t = Clock::now();
+    for (const Detection& d : r.detections) {
+      if (!d.found || !d.cMo) continue;
+      ViewInstance v{static_cast<int>(k), d, *d.cMo * model.views[k].oMv.inverse(), {}};
+      v.pairs = viewCorrespondences(*views[k].obj, model.views[k].oMv, d, camera, opt);
+      instances.push_back(std::move(v));
+    }
+    res->time_ms.pose += msSince(t);
+  }
+  const auto t = Clock::now();
+  std::vector<Detection> fused = fuseViews(std::move(instances), names, camera.K(), opt.pose_options, opt.multiview);
+  if (static_cast<int>(fused.size()) > opt.match.max_instances) fused.resize(static_cast<size_t>(opt.match.max_instances));
+  res->time_ms.pose += msSince(t);
+
+  size_t shown = 0;  // the view whose stats (and not-found entry) stand for the object's
+  if (!fused.empty()) {
+    shown = static_cast<size_t>(std::find(names.begin(), names.end(), fused[0].view) - names.begin());
+  } else {
+    for (size_t k = 1; k < views.size(); ++k)
+      if (per_view[k].stats[0].miss > per_view[shown].stats[0].miss) shown = k;
+    fused.push_back(per_view[shown].detections[0]);
+  }
+  res->detections.insert(res->detections.end(), fused.begin(), fused.end());
+  res->stats.push_back(per_view[shown].stats[0]);
+}
+
+}  // namespace
 
 DetectionResult Detector::detect(const cv::Mat& image, const Intrinsics& camera,
                                  const FrameStamp& frame, const DetectionQuery& query) const {
@@ -309,21 +385,36 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
   std::vector<const ObjectPrior*> prior_of(objectCount(), nullptr);
   for (const ObjectPrior& p : query.priors) prior_of[p.object] = &p;
 
-  // One extraction per distinct region, in object order.
+  // What is searched: each object, or each view of a several-view object (its prior moved to
+  // the view: cMv = cMo * oMv).
+  std::vector<std::vector<Searched>> searched(objectCount());
   const auto t = Clock::now();
-  std::vector<Search> searches;
   std::vector<Extraction> extractions;
-  std::vector<int> extraction_of;  // per object: index into extractions, -1: nothing extracted
+  auto add = [&](int id, const RegisteredObject& obj, const ObjectPrior* prior) {
+    Search s = searchFor(obj, prior, query, camera);
+    const int x = extractionFor(s, gray, camera, opt_.sift, &extractions);
+    searched[id].push_back({&obj, std::move(s), x});
+  };
   for (int id = 0; id < objectCount(); ++id) {
-    searches.push_back(searchFor(objects_[id], prior_of[id], query, camera));
-    extraction_of.push_back(extractionFor(searches.back(), gray, camera, opt_.sift, &extractions));
+    const std::vector<ObjectView>& views = objects_[id].model.views;
+    if (views.empty()) add(id, objects_[id], prior_of[id]);
+    for (size_t k = 0; k < views.size(); ++k) {
+      std::optional<ObjectPrior> view_prior;
+      if (prior_of[id]) view_prior = *prior_of[id];
+      if (view_prior && view_prior->cMo) view_prior->cMo = *view_prior->cMo * views[k].oMv;
+      add(id, views_[id][k], view_prior ? &*view_prior : nullptr);
+    }
   }
   for (const Extraction& x : extractions) res.scene_features += x.features.size();
   res.time_ms.extract = msSince(t);
 
   for (int id = 0; id < objectCount(); ++id) {
-    const Extraction* x = extraction_of[id] >= 0 ? &extractions[extraction_of[id]] : nullptr;
-    detectObject(objects_[id], id, opt_, searches[id], x, camera, &res);
+    if (objects_[id].model.views.empty()) {
+      const Searched& s = searched[id][0];
+      detectObject(*s.obj, id, opt_, s.search, s.extraction >= 0 ? &extractions[s.extraction] : nullptr, camera, &res);
+    } else {
+      detectSeveralViews(objects_[id].model, id, opt_, searched[id], extractions, camera, &res);
+    }
   }
   return res;
 }

@@ -41,6 +41,19 @@ namespace refgrasp::detector {
 
 struct RegisteredObject;  // detector/registered_object.h: model, reference index, pyramid
 
+/// Fusion of a several-view object's views (detector/multiview.h). Two views' poses of the
+/// object agree when their origins lie within max_gap_m + max_gap_fraction x distance and their
+/// rotations within max_rotation_gap_rad: a verified single face is within about 1 cm + 2 % and
+/// 3 deg at 0.5-2 m (docs/results.md "Several-view objects"), so two right faces differ by up to
+/// twice that, and a face placed on the wrong side of a box (0.1 m or 90 deg off) does not agree.
+struct MultiViewOptions {
+  double max_gap_m = 0.02;
+  double max_gap_fraction = 0.05;
+  double max_rotation_gap_rad = 0.1745;  ///< 10 deg
+  /// Throws std::invalid_argument "MultiViewOptions.<field>: <problem>".
+  void check() const;
+};
+
 /// Every field can be set in a YAML file (config/detector.yaml, loadDetectorOptions).
 struct DetectorOptions {
   SiftOptions sift;
@@ -56,6 +69,7 @@ struct DetectorOptions {
   SanityOptions sanity;
   /// Last check of an instance: the reference warped by its H must correlate with the scene.
   VerifyOptions verify;
+  MultiViewOptions multiview;
   /// Throws std::invalid_argument "<Options.field>: <problem>".
   void check() const;
 };
@@ -64,9 +78,10 @@ struct DetectorOptions {
 struct ObjectPrior {
   int object = -1;  ///< id returned by addObject()
   /// Predicted cMo (object frame in the scene camera frame, metres, radians). For objects with a
-  /// reference pose it gives the region (the projected pattern's bounding box grown by
-  /// roi_margin) and the keypoint size range (the reference keypoint sizes times the predicted
-  /// local scale, divided and multiplied by scale_margin). Ignored for 2D-only objects.
+  /// reference pose (a several-view object: each view, at cMo * oMv) it gives the region (the
+  /// projected pattern's bounding box grown by roi_margin) and the keypoint size range (the
+  /// reference keypoint sizes times the predicted local scale, divided and multiplied by
+  /// scale_margin). Ignored for 2D-only objects.
   std::optional<Pose> cMo;
   cv::Rect roi;               ///< image px; non-empty: search here instead of the projection
   double roi_margin = 0.25;   ///< added on each side, fraction of the projection's larger side
@@ -98,6 +113,11 @@ struct Detection {
   double log10_nfa = 0;     ///< a-contrario significance of the matches (MatchOptions::max_log10_nfa)
   double correlation = 0;   ///< photometric agreement of the warped reference (VerifyOptions)
   SanityStatus sanity = SanityStatus::kOk;  ///< why the best candidate was rejected, if it was
+  /// Several-view objects: the views fused into this instance, most inliers first (cMo is their
+  /// joint pose when there are two or more; inliers their sum), and `view` the first of them,
+  /// whose H, corners, score, log10_nfa and correlation these are. Empty for other objects.
+  std::vector<std::string> views;
+  std::string view;
 };
 
 /// Why an object has no accepted instance in a frame: the furthest stage a hypothesis reached.
@@ -185,7 +205,9 @@ class Detector {
   Detector& operator=(const Detector&);
   Detector& operator=(Detector&&) noexcept;
 
-  /// Computes the reference features once. Returns the object id (0, 1, ...).
+  /// Computes the reference features once. Returns the object id (0, 1, ...). A several-view
+  /// object (ObjectModel::views) has one id; its views are registered inside, detected on the
+  /// frame's shared extraction and fused (detector/multiview.h).
   int addObject(const ObjectModel& object);
   int objectCount() const;
   const ObjectModel& object(int id) const;
@@ -201,8 +223,8 @@ class Detector {
   /// Aligns the object's reference with `image` starting from the pose cMo (e.g. a tracker's):
   /// the dense ECC refinement of the refined pose method (options.dense), on the homography cMo
   /// predicts, then the pose from the grid it maps. ok = false (never a throw) when the object
-  /// has no usable reference pyramid (2D-only, distorted reference camera; a pattern region that
-  /// is not a rectangle masks the template), the pattern is behind the camera, the image is
+  /// has no usable reference pyramid (2D-only, several-view, distorted reference camera; a
+  /// pattern region that is not a rectangle masks the template), the pattern is behind the camera, the image is
   /// unusable, or ECC fails, moves a
   /// corner more than dense.max_corner_shift_px or ends below dense.min_correlation.
   /// dense: the refinement's options (nullptr: options().dense).
@@ -220,7 +242,9 @@ class Detector {
   DetectionResult detectGray(const cv::Mat& gray, const Intrinsics& camera,
                              const DetectionQuery& query) const;
   DetectorOptions opt_;
-  std::vector<RegisteredObject> objects_;
+  std::vector<RegisteredObject> objects_;  ///< per id; a several-view object's holds only its model
+  /// Per id: the several-view object's views (empty for other objects), as objects_ entries.
+  std::vector<std::vector<RegisteredObject>> views_;
 };
 
 }  // namespace refgrasp::detector

@@ -84,13 +84,17 @@ void visitFields(O& o, Visit&& v) {
   v("verify.period_ambiguity_cells", o.verify.period_ambiguity_cells);
   v("verify.period_switch_correlation", o.verify.period_switch_correlation);
   v("verify.max_feature_pose_rms_px", o.verify.max_feature_pose_rms_px);
+  v("multiview.max_gap_m", o.multiview.max_gap_m);
+  v("multiview.max_gap_fraction", o.multiview.max_gap_fraction);
+  v("multiview.max_rotation_gap_rad", o.multiview.max_rotation_gap_rad);
 }
 
 // check() names fields "<Options>.<field>"; the file names them "<section>.<field>".
 const std::map<std::string, std::string> kSectionOf = {
     {"SiftOptions", "sift"},          {"MatchOptions", "match"},
     {"PoseOptions", "pose_options"},  {"DenseRefineOptions", "dense"},
-    {"SanityOptions", "sanity"},      {"VerifyOptions", "verify"}};
+    {"SanityOptions", "sanity"},      {"VerifyOptions", "verify"},
+    {"MultiViewOptions", "multiview"}};
 
 const char* name(MatcherType m) { return m == MatcherType::kRatio ? "ratio" : "paper"; }
 const char* name(SiftImplementation i) { return i == SiftImplementation::kOpenCV ? "opencv" : "fast"; }

@@ -217,6 +217,31 @@ TEST(HostileEnonGrasp, BadOptionsFilesAndOutputsAreOneLineWithTheDocumentedCodes
                 "cannot write to standard output", "/dev/full");
 }
 
+// A several-view object (a box's faces): tracking it is not implemented, so the tools that track
+// refuse it in one line naming the file and `views`; pose_replay detects it in every frame.
+TEST(HostileSeveralViews, ToolsThatTrackRefuseItInOneLineAndPoseReplayDetectsIt) {
+  const std::string box = write("box_views.yaml", "views:\n  - definition: " + kSource +
+                                                      "/config/objects/cereal_box.yaml\n"
+                                                      "    oMv: {translation: [0, 0, 0], rotation_vector: [0, 0, 0]}\n");
+  expectOneLine(run("enon_grasp", "--backend sim --enon " + kEnon + " --scenario " +
+                                      scenarioWith("views", "definition: ../objects/cereal_box.yaml",
+                                                   "definition: " + box) +
+                                      " --oracle"),
+                2, box + ": views: several-view objects are not tracked", "enon_grasp");
+  expectOneLine(run("vision_component", "--object " + box), 2, box + ": views: several-view objects are not tracked",
+                "vision_component");
+  const fs::path frames = dir() / "views_frames";
+  fs::create_directories(frames);
+  fs::copy_file(kTexture, frames / "000000.png", fs::copy_options::overwrite_existing);
+  const AppRun r = run("pose_replay", "--object " + box + " --camera " + kObjectCamera + " --input " + frames.string() +
+                                          " --output " + (dir() / "views_out").string() + " --no-track --frames");
+  EXPECT_EQ(r.status, 0) << r.err;
+  std::ifstream poses(dir() / "views_out" / "poses.jsonl");
+  std::string line;
+  ASSERT_TRUE(std::getline(poses, line));
+  EXPECT_NE(line.find("\"views\":[\"cereal_box\"],\"view\":\"cereal_box\""), std::string::npos) << line;
+}
+
 TEST(HostileSimEnonDemo, BadOptionsFilesAndOutputsAreOneLineWithTheDocumentedCodes) {
   const std::string base = "--enon " + kEnon + " --scenario " + kScenario;
   const std::string out = " --out " + (dir() / "enon_demo").string();

@@ -12,6 +12,7 @@
 
 #include "robot/sim/synthetic_scene.h"
 #include "core/camera.h"
+#include "multiview_box.h"
 
 using namespace refgrasp;
 using namespace refgrasp::testing;
@@ -244,3 +245,53 @@ TEST_F(DetectObjectCli, DetectorConfigFileAndCommandLineOverrides) {
   EXPECT_EQ(r.err, "detect_object: " + path("typo.yaml") + ": match.min_inlirs: unknown field (did you mean min_inliers?)\n");
   EXPECT_TRUE(r.lines.empty());
 }
+
+namespace {
+
+// The field names of a JSON line, in order.
+std::vector<std::string> keys(const std::string& line) {
+  std::vector<std::string> out;
+  const nlohmann::ordered_json j = nlohmann::ordered_json::parse(line);
+  for (const auto& [k, v] : j.items()) out.push_back(k);
+  return out;
+}
+
+TEST_F(DetectObjectCli, ASeveralViewObjectsLineNamesItsViewsAsDocumented) {
+  const TestBox box;
+  const fs::path d = dir() / "box";
+  fs::create_directories(d);
+  const std::string def = box.writeDefinitions(d, "parcel");
+  // Turned 40 deg and seen from above: its front, right side and top may show.
+  const Pose cMo = lookAtBox(40 * M_PI / 180, 25 * M_PI / 180, 0.8);
+  cv::imwrite((d / "box.png").string(), renderScene(sceneCamera(), box.placed(cMo), 31));
+  const CliRun r = run(path("clutter.png") + " --object " + def + " " + (d / "box.png").string() + " --camera " +
+                       path("scene_cam.yaml") + " --max-features 0");
+  ASSERT_EQ(r.status, 0) << r.err;
+  std::vector<std::string> lines;
+  std::istringstream in(r.out);
+  for (std::string l; std::getline(in, l);) lines.push_back(l);
+  ASSERT_EQ(lines.size(), 2u) << r.out;
+  EXPECT_EQ(keys(lines[0]), (std::vector<std::string>{"image", "found", "time_ms"}));
+  EXPECT_EQ(keys(lines[1]), (std::vector<std::string>{"image", "found", "homography", "corners", "R", "t", "inliers",
+                                                      "views", "view", "time_ms"}));
+  const json& j = r.lines[1];
+  EXPECT_FALSE(r.lines[0]["found"].get<bool>());
+  ASSERT_TRUE(j["found"].get<bool>());
+  ASSERT_GE(j["views"].size(), 1u);
+  EXPECT_EQ(j["view"], j["views"][0]);
+  for (const auto& v : j["views"]) EXPECT_TRUE(v == "front" || v == "right" || v == "top") << v;
+  // R, t: the box's frame in the camera frame (row-major R).
+  const Eigen::Vector3d t(j["t"][0], j["t"][1], j["t"][2]);
+  Eigen::Matrix3d R;
+  for (int i = 0; i < 9; ++i) R(i / 3, i % 3) = j["R"][i];
+  EXPECT_LT((t - cMo.t).norm(), 0.02 * cMo.t.norm());
+  EXPECT_LT(rotationError(Pose(R, t), cMo), 3 * M_PI / 180);
+  // homography and corners: those of the named view (its reference px -> image px).
+  const auto face = std::find_if(box.defined.begin(), box.defined.end(), [&](const auto& f) { return f.second == j["view"]; });
+  ASSERT_NE(face, box.defined.end());
+  const auto truth = sim::projectPlaneCorners(sceneCamera(), box.placed(cMo)[static_cast<size_t>(face->first)]);
+  for (int i = 0; i < 4; ++i)
+    EXPECT_LT((Eigen::Vector2d(j["corners"][i][0], j["corners"][i][1]) - truth[static_cast<size_t>(i)]).norm(), 3.0) << i;
+}
+
+}  // namespace
