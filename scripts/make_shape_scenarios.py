@@ -8,7 +8,8 @@ conventions: config/scenarios/README.md; the definitions' forms: src/detector/ob
 Rules (the same for every world, nothing tuned to one): the robot starts at the origin facing +x;
 the target's centre (a cylinder's axis, a box's centre) is `distance_m` away at `bearing_deg`
 (counter-clockwise from +x) and it stands upright on a 0.72 m table whose front edge is
-perpendicular to the line of sight and 9 cm in front of the target's nearest point.
+perpendicular to the grasp's approach, 13 cm in front of that centre (the grasp frame's depth in the
+photo worlds and can_table), or 2 cm in front of the target's nearest point if that is further.
 - Cylinders (cans, bottles): a photograph as the label, `label_height` m high and as wide as the
   photo's aspect makes it, its centre half-way up the side and turned `turn_deg` about the axis
   from the robot (0: the label's centre faces the robot); the grasp frame is on the axis half-way
@@ -16,9 +17,9 @@ perpendicular to the line of sight and 9 cm in front of the target's nearest poi
 - Boxes: a photograph on each of five faces (front, back, left, right, top) and a several-view
   definition of them (each face a planar definition: the photo as its reference image, a pinhole
   with the face's metric size at 0.5 m); the defined front looks `turn_deg` away from the robot
-  (180: straight away); the grasp frame is at the box centre, approaching horizontally through
-  the side face that looks most towards the robot (the fingers close across the other horizontal
-  side).
+  (180: straight away); the grasp approaches horizontally through the side face that looks most
+  towards the robot, square to it, on the line through the box centre, its frame GRASP_IN behind
+  that face or at the centre if nearer (the fingers close across the other horizontal side).
 Distractors stand on the same table edge, `offset` m to the left (+) or right (-) of the target
 along the edge, set back like it.
 """
@@ -28,7 +29,16 @@ import struct
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from make_grasp_scenarios import FAULTS, ROOT, TABLE_DEPTH, TABLE_H, TABLE_WIDTH, EDGE_TO_FACE, fmt, rotvec, upright  # noqa: E402
+from make_grasp_scenarios import FAULTS, ROOT, TABLE_DEPTH, TABLE_H, TABLE_WIDTH, fmt, rotvec, upright  # noqa: E402
+
+# The grasp frame (the target's centre) this far behind the table's front edge: as in the photo
+# worlds (9 cm + half a 7 cm box) and can_table; the arm reaches over the edge from a base that
+# stands clear of it. The target's nearest point at least ON_TABLE behind the edge.
+GRASP_DEPTH = 0.13
+ON_TABLE = 0.02
+# A box's grasp frame at most this far behind the face it is approached through: the palm's front,
+# 6.5 cm behind the gripper frame, stays 2.5 cm clear of it (config/enon.yaml, gripper).
+GRASP_IN = 0.04
 
 # Photographs (media/photos, media/labels): path from the repository root.
 PHOTOS = {
@@ -90,14 +100,12 @@ def header(text):
             "# format: README.md in this folder."]
 
 
-def room_and_table(wd, near_m):
-    """The room and a table whose front edge is 9 cm before the target's nearest point, which
-    lies near_m before its centre along the line of sight."""
-    b = math.radians(wd["bearing"])
-    los = [math.cos(b), math.sin(b)]
-    c = [wd["distance"] * los[0], wd["distance"] * los[1]]
-    back = TABLE_DEPTH / 2 - near_m - EDGE_TO_FACE
-    table_c = [c[0] + back * los[0], c[1] + back * los[1]]
+def room_and_table(wd, c, psi, near_m):
+    """The room and a table whose front edge is perpendicular to the grasp's approach (heading
+    psi), GRASP_DEPTH before the grasp frame's origin c (x, y), or ON_TABLE before the approach
+    face (near_m before c along the approach) when that is further."""
+    back = TABLE_DEPTH / 2 - max(GRASP_DEPTH, near_m + ON_TABLE)
+    table_c = [c[0] + back * math.cos(psi), c[1] + back * math.sin(psi)]
     return ["seed: %d" % wd["seed"],
             "max_duration_s: 120",
             "robot_start: {x: 0.0, y: 0.0, theta: 0.0}",
@@ -110,19 +118,20 @@ def room_and_table(wd, near_m):
             "  wall_height_m: 2.5",
             "table:",
             "  size_m: [%.2f, %.2f, %.2f]" % (TABLE_DEPTH, TABLE_WIDTH, TABLE_H),
-            "  pose: {translation: %s, rotation_vector: %s}" % (fmt([table_c[0], table_c[1], 0.0]), fmt([0, 0, b])),
+            "  pose: {translation: %s, rotation_vector: %s}" % (fmt([table_c[0], table_c[1], 0.0]), fmt([0, 0, psi])),
             "  texture: ../../media/backgrounds/table_wood.png",
             "objects:"]
 
 
-def distractors(wd):
-    """Distractors on the table edge beside the target, their fronts facing the robot."""
+def distractors(wd, psi):
+    """Distractors on the table edge beside the target (the edge perpendicular to heading psi),
+    their fronts along it."""
     b = math.radians(wd["bearing"])
-    los, left = [math.cos(b), math.sin(b)], [-math.sin(b), math.cos(b)]
+    los, left = [math.cos(psi), math.sin(psi)], [-math.sin(psi), math.cos(psi)]
     lines = []
     for name, offset in wd["distractors"]:
         shape, dims, tex = CLUTTER[name]
-        c = [wd["distance"] * los[i] + offset * left[i] for i in range(2)]
+        c = [wd["distance"] * [math.cos(b), math.sin(b)][i] + offset * left[i] for i in range(2)]
         lines += ["  - name: %s" % name, "    shape: %s" % shape]
         if shape == "box":
             w, h, d = dims
@@ -144,7 +153,7 @@ def distractors(wd):
             lines += ["    size_m: [%.2f, %.2f]" % (w, h), "    texture: %s" % tex]
             front = c
             z = TABLE_H + h / 2 + 0.01
-        lines += ["    pose: {translation: %s, rotation_vector: %s}" % (fmt([front[0], front[1], z]), fmt(rotvec(upright(b))))]
+        lines += ["    pose: {translation: %s, rotation_vector: %s}" % (fmt([front[0], front[1], z]), fmt(rotvec(upright(psi))))]
     return lines
 
 
@@ -175,7 +184,7 @@ def write_cylinder(wd):
     phi = b + t  # z_o (into the can at the label's centre) points at this heading
     axis = [wd["distance"] * math.cos(b), wd["distance"] * math.sin(b)]
     origin = [axis[0] - r * math.cos(phi), axis[1] - r * math.sin(phi), TABLE_H + wd["height"] / 2]
-    lines = header(wd["text"]) + room_and_table(wd, r)
+    lines = header(wd["text"]) + room_and_table(wd, axis, b, r)
     lines += ["  - name: %s" % name,
               "    target: true",
               "    definition: ../objects/%s.yaml" % name,
@@ -189,7 +198,7 @@ def write_cylinder(wd):
               # On the axis half-way up, z_g along the line of sight, (sin t, 0, cos t) in o: a
               # turn of t about y_o.
               "    grasp_frame: {translation: [0.0, 0.0, %.4f], rotation_vector: [0.0, %.4f, 0.0]}" % (r, t)]
-    lines += distractors(wd) + camera_and_faults(wd)
+    lines += distractors(wd, b) + camera_and_faults(wd)
     with open(os.path.join(ROOT, "config/scenarios", name + ".yaml"), "w") as out:
         out.write("\n".join(lines) + "\n")
 
@@ -245,13 +254,18 @@ def write_box(wd):
     zo = [math.cos(phi), math.sin(phi)]
     centre = [wd["distance"] * los[0], wd["distance"] * los[1]]
     origin = [centre[0] - D / 2 * zo[0], centre[1] - D / 2 * zo[1], TABLE_H + H / 2]
-    near = abs(W / 2 * math.sin(t)) + abs(D / 2 * math.cos(t))
     # The line of sight in the object frame is (sin t, 0, cos t); approach through the face it
-    # meets most squarely: z_g = +-x_o or +-z_o, y_g = y_o.
+    # meets most squarely: z_g = +-x_o or +-z_o (a turn of `approach` about y_o), y_g = y_o.
     s, c = math.sin(t), math.cos(t)
-    approach = max([(c, 0.0), (-c, math.pi), (s, math.pi / 2), (-s, -math.pi / 2)])[1]
+    approach, half = max([(c, 0.0, D / 2), (-c, math.pi, D / 2), (s, math.pi / 2, W / 2),
+                          (-s, -math.pi / 2, W / 2)])[1:]
+    psi = phi - approach  # heading of z_g: (sin a, 0, cos a) in o is at phi - a in w
+    depth = min(half, GRASP_IN)  # the grasp frame behind the approach face
+    zg = [math.cos(psi), math.sin(psi)]
+    gp = [centre[0] - (half - depth) * zg[0], centre[1] - (half - depth) * zg[1]]
+    g_o = [-(half - depth) * math.sin(approach), 0.0, D / 2 - (half - depth) * math.cos(approach)]
     faces = ", ".join("%s: ../../%s" % (f, PHOTOS[p]) for f, p in wd["faces"].items())
-    lines = header(wd["text"]) + room_and_table(wd, near)
+    lines = header(wd["text"]) + room_and_table(wd, gp, psi, depth)
     lines += ["  - name: %s" % name,
               "    target: true",
               "    definition: ../objects/%s.yaml" % name,
@@ -260,8 +274,8 @@ def write_box(wd):
               "    faces: {%s}" % faces,
               "    side_texture: ../../media/boxes/box_side_a.png",
               "    pose: {translation: %s, rotation_vector: %s}" % (fmt(origin), fmt(rotvec(upright(phi)))),
-              "    grasp_frame: {translation: [0.0, 0.0, %.4f], rotation_vector: [0.0, %.4f, 0.0]}" % (D / 2, approach)]
-    lines += distractors(wd) + camera_and_faults(wd)
+              "    grasp_frame: {translation: %s, rotation_vector: [0.0, %.4f, 0.0]}" % (fmt(g_o), approach)]
+    lines += distractors(wd, psi) + camera_and_faults(wd)
     with open(os.path.join(ROOT, "config/scenarios", name + ".yaml"), "w") as out:
         out.write("\n".join(lines) + "\n")
 

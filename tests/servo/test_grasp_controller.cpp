@@ -281,16 +281,17 @@ TEST(GraspController, TheObjectExtentOfEachDefinitionForm) {
   EXPECT_LT((can.extent_o.centre() - Eigen::Vector3d(0, 0, 0.033)).norm(), 1e-9);  // on the axis
   EXPECT_NEAR(can.extent_o.depthBehind(can.world().oMg), 0.033, 1e-9);  // axis to label surface
 
-  // 0.1744 x 0.12 x 0.16 m, its frame the front face's; grasped from the back (z_g = -z_o).
+  // 0.1744 x 0.12 x 0.16 m, its frame the front face's; grasped from the back (z_g = -z_o),
+  // 4 cm inside it.
   const Target box = loadTarget(scenarioPath("box_cookie_turned"));
   EXPECT_LT((box.extent_o.min_o - Eigen::Vector3d(-0.0872, -0.06, 0)).norm(), 1e-4);
   EXPECT_LT((box.extent_o.max_o - Eigen::Vector3d(0.0872, 0.06, 0.16)).norm(), 1e-4);
-  EXPECT_NEAR(box.extent_o.depthBehind(box.world().oMg), 0.08, 1e-4);
+  EXPECT_NEAR(box.extent_o.depthBehind(box.world().oMg), 0.04, 1e-4);
   const robot::EnonModel model = robot::loadEnonModel(refgrasp::testing::kSourceDir + "/config/enon.yaml");
   auto robot = sim::makeSimRobot(model, box.scenario);
   servo::OracleEstimator oracle(box.object);
   servo::GraspOptions o;
-  o.pregrasp_clearance_m = 0.06;
+  o.pregrasp_clearance_m = 0.1;
   EXPECT_NEAR(servo::GraspController(*robot, oracle, box.world().oMg, box.extent_o, o).pregraspDistance(), 0.14, 1e-4);
   o.pregrasp_clearance_m = 0.02;  // the options' distance when it is the larger
   EXPECT_NEAR(servo::GraspController(*robot, oracle, box.world().oMg, box.extent_o, o).pregraspDistance(), 0.12, 1e-12);
