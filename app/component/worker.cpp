@@ -179,8 +179,9 @@ void Worker::publishDetections(const msg::Header& header, const FrameOutcome& ou
     detections[k].results = {1, 1, &hypotheses[k], false};
     // The box around the pattern (several views: the view seen most squarely): its centre and
     // extent on the object plane.
-    const std::array<Eigen::Vector3d, 4> corners =
-        *servo::facingQuad(servo::patternQuads(detector_.object(object_id)), cMo);
+    std::array<Eigen::Vector3d, 4> corners;
+    corners.fill(Eigen::Vector3d::Zero());
+    if (const auto q = servo::facingQuad(servo::patternQuads(detector_.object(object_id)), cMo)) corners = *q;
     const Eigen::Vector3d centre = (corners[0] + corners[1] + corners[2] + corners[3]) / 4.0;
     detections[k].bbox.center = dds::toRosPose(cMo * Pose(Eigen::Matrix3d::Identity(), centre));
     detections[k].bbox.size = {(corners[1] - corners[0]).norm(), (corners[3] - corners[0]).norm(), 0.0};

@@ -340,7 +340,10 @@ void detectSeveralViews(const ObjectModel& model, int id, const DetectorOptions&
   } else {
     for (size_t k = 1; k < views.size(); ++k)
       if (per_view[k].stats[0].miss > per_view[shown].stats[0].miss) shown = k;
-    fused.push_back(per_view[shown].detections[0]);
+    Detection missing;
+    missing.object = id;
+    missing.sanity = per_view[shown].detections[0].sanity;
+    fused.push_back(missing);
   }
   res->detections.insert(res->detections.end(), fused.begin(), fused.end());
   res->stats.push_back(per_view[shown].stats[0]);

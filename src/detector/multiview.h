@@ -9,7 +9,8 @@
 // group whose first member (its seed) agrees with it (translation and rotation gaps within
 // MultiViewOptions) and holds no instance of the same view, or starts a group. A group of two
 // views or more gets a joint pose: Huber-robust LM (refinePoseLM) over every member's
-// correspondences, started from the seed's cMo. Views that disagree are never averaged: each
+// correspondences, started from the seed's cMo and kept when it still agrees with the seed (the
+// seed's pose otherwise). Views that disagree are never averaged: each
 // disagreeing group is an instance of its own, best (most inliers) first, so a wrong oMv or two
 // boxes give two instances, not one pose between them.
 //

@@ -31,10 +31,10 @@ void OracleOptions::check() const {
 OracleEstimator::OracleEstimator(const detector::ObjectModel& object, const OracleOptions& o)
     : name_(object.name), opt_(o) {
   opt_.check();
-  if (!object.hasPose())
+  quads_o_ = patternQuads(object);
+  if (!object.hasPose() || quads_o_.empty())
     throw std::invalid_argument("OracleEstimator: object '" + object.name +
                                 "' has no reference pose (2D only)");
-  quads_o_ = patternQuads(object);
 }
 
 bool OracleEstimator::visible(const Pose& cMo, const Intrinsics& cam,

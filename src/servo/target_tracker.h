@@ -124,7 +124,7 @@ class TargetTracker {
   /// Forgets every target (trackers stopped, confirmations cleared).
   void reset();
 
-  /// Whether frames are tracked between detections (options.track and a 3D object).
+  /// Whether frames are tracked between detections (options.track and an object with a pose).
   bool tracking() const;
   const TargetTrackerOptions& options() const;
 

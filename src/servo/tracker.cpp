@@ -1,8 +1,8 @@
 #include "servo/tracker.h"
 
 #include <algorithm>
-#include <memory>
 #include <cmath>
+#include <memory>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 #include <opencv2/video/tracking.hpp>

@@ -225,7 +225,7 @@ TEST(HostileSeveralViews, EnonGraspGraspsItAndPoseReplayDetectsIt) {
                                                       "/config/objects/cereal_box.yaml\n"
                                                       "    oMv: {translation: [0, 0, 0], rotation_vector: [0, 0, 0]}\n");
   const AppRun g = run("enon_grasp", "--backend sim --enon " + kEnon + " --scenario " +
-                                         scenarioWith("views", "definition: ../objects/cereal_box.yaml",
+                                         scenarioWith("views", "definition: " + kSource + "/config/objects/cereal_box.yaml",
                                                       "definition: " + box) +
                                          " --oracle");
   EXPECT_EQ(g.status, 0) << g.err;

@@ -97,6 +97,10 @@ TEST_F(MultiView, TheObjectHasOneIdAndItsViewsStayInside) {
   EXPECT_EQ(box->views.front(), "front");
   EXPECT_TRUE(poseWithin(*box->cMo, cMo)) << translationError(*box->cMo, cMo) << " m " << rotationError(*box->cMo, cMo) / kDeg << " deg";
   // The front face alone: its pose is the front face's frame, not the box's.
+  // One extraction for the frame, shared by the five views and the other object.
+  Detector alone;
+  alone.addObject(loadObjectDefinition((*dir_ / "box_front.yaml").string()));
+  EXPECT_EQ(r.scene_features, alone.detect(renderScene(cam, box_->placed(cMo), 7), cam).scene_features);
   const auto front = r.find(b);
   ASSERT_TRUE(front);
   EXPECT_TRUE(front->views.empty());
@@ -187,7 +191,8 @@ TEST_F(MultiView, ABoxTurnedAwayIsFoundByItsBackOrSides) {
       found += poseWithin(*d->cMo, cMo);
     }
   }
-  EXPECT_GE(found, frames - 1) << found << " of " << frames;
+  std::printf("turned away: %d of %d found and posed\n", found, frames);
+  EXPECT_GE(found, frames - 1);
 }
 
 // Where two faces show, the joint pose is about as accurate as the better of the two faces'
@@ -311,6 +316,40 @@ TEST_F(MultiView, APriorOnTheObjectGuidesEveryView) {
   DetectionQuery away = near;
   away.priors[0].cMo = Pose(cMo.R, cMo.t + Eigen::Vector3d(0.5, 0, 0));
   EXPECT_FALSE(det.detect(img, cam, {}, away).find(id));
+}
+
+// Five views are five chances of a false detection: none on cluttered scenes without the box.
+TEST_F(MultiView, NoFalsePositivesOnClutter) {
+  Detector det;
+  const int id = det.addObject(loadObjectDefinition(*path_));
+  const Intrinsics cam = sceneCamera();
+  int false_positives = 0;
+  for (uint64_t seed = 4000; seed < 4024; ++seed) {
+    const DetectionResult r = det.detect(renderScene(cam, {}, seed), cam);
+    ASSERT_TRUE(r.ok);
+    false_positives += r.find(id).has_value();
+  }
+  EXPECT_EQ(false_positives, 0);
+}
+
+// Stereo: each eye fuses the views, then the eyes' poses of the object are fused.
+TEST_F(MultiView, StereoFusesBothEyesPosesOfTheObject) {
+  Detector det;
+  const int id = det.addObject(loadObjectDefinition(*path_));
+  StereoRig rig;
+  rig.left = rig.right = sceneCamera();
+  rig.lMr = Pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0.12, 0, 0));
+  const Pose lMo = lookAtBox(130 * kDeg, 25 * kDeg, 0.9);
+  const StereoDetectionResult r =
+      det.detectStereo(renderScene(rig.left, box_->placed(lMo), 961),
+                       renderScene(rig.right, box_->placed(rig.lMr.inverse() * lMo), 962), rig);
+  ASSERT_TRUE(r.ok) << r.error;
+  ASSERT_EQ(r.objects.size(), 1u);
+  EXPECT_EQ(r.objects[0].fused.eyes, EyesUsed::kBoth);
+  ASSERT_TRUE(r.objects[0].fused.lMo);
+  EXPECT_TRUE(poseWithin(*r.objects[0].fused.lMo, lMo));
+  EXPECT_FALSE(r.objects[0].left.views.empty());
+  EXPECT_EQ(r.objects[0].object, id);
 }
 
 // fuseViews on exact correspondences: agreeing views give the joint pose the pairs define,

@@ -10,12 +10,14 @@
 #include <opencv2/imgproc.hpp>
 #include <random>
 
+#include "detector/detector.h"
 #include "detector/object.h"
 #include "robot/sim/degrade.h"
 #include "robot/sim/render.h"
 #include "robot/sim/scenario.h"
 #include "robot/sim/synthetic_scene.h"
 #include "servo/surface_model.h"
+#include "servo/target_estimator.h"
 #include "servo/target_tracker.h"
 #include "servo/tracker.h"
 
@@ -359,4 +361,75 @@ TEST(SurfaceTracker, TheMbtTrackerRefusesObjectsThatAreNotOnePlane) {
   ASSERT_EQ(quads.size(), 3u);
   EXPECT_LT(((*front)[0] - rt::sceneCamera().project(boxPose(0, 90) * quads[0][0])).norm(), 1e-9);
   EXPECT_LT(((*side)[0] - rt::sceneCamera().project(boxPose(89, 90) * quads[1][0])).norm(), 1e-9);
+}
+
+// The pipeline on the can with a real detector. The detector gives a cylinder its planar
+// approximation's pose (the flat label on the tangent plane: its rotation is off by tens of
+// degrees on this label, its position by millimetres); the tracker starts from it on the
+// cylinder's surface model and keeps it, without a loss, to the end.
+TEST(SurfaceTracker, ThePipelineDetectsConfirmsAndTracksACan) {
+  const Sequence& seq = canSequence();
+  detector::Detector det;
+  det.addObject(canModel());
+  servo::TargetTracker pipeline(det);
+  std::string modes;
+  std::vector<double> trans, rot;
+  int confirmed = 0;
+  for (size_t k = 0; k < seq.frames.size(); ++k) {
+    robot::MonoFrame f;
+    f.image = seq.frames[k];
+    f.stamp = static_cast<double>(k) / 30;
+    f.index = static_cast<int64_t>(k);
+    const servo::TargetFrame r = pipeline.process(f, seq.camera);
+    ASSERT_TRUE(r.ok) << r.error;
+    const servo::TargetState& s = r.objects[0];
+    modes += s.mode == servo::TrackMode::kDetect ? 'D' : s.mode == servo::TrackMode::kTrack ? 'T' : '.';
+    confirmed += s.confirmed;
+    if (s.cMo) {
+      trans.push_back(translationError(*s.cMo, seq.truth[k]));
+      rot.push_back(rotationError(*s.cMo, seq.truth[k]) / kDeg);
+    }
+  }
+  std::printf("pipeline on the can: %s (%d confirmed); translation median %.2f max %.2f mm, rotation "
+              "median %.3f max %.3f deg\n",
+              modes.c_str(), confirmed, 1e3 * median(trans), 1e3 * *std::max_element(trans.begin(), trans.end()),
+              median(rot), *std::max_element(rot.begin(), rot.end()));
+  const size_t first = modes.find("DD");
+  ASSERT_NE(first, std::string::npos) << "two detections in a row confirm the can";
+  EXPECT_EQ(modes.find('.', first), std::string::npos) << "no loss once confirmed: " << modes;
+  EXPECT_NE(modes.find('T', first), std::string::npos) << modes;
+  EXPECT_GE(confirmed, static_cast<int>(modes.size() - first) - 1);
+  EXPECT_LT(*std::max_element(trans.begin(), trans.end()), 0.015);
+}
+
+// The new options are checked at start-up; the oracle (ground truth as an estimator) sees a
+// several-view object by the view it shows most squarely.
+TEST(SurfaceTracker, OptionsAreCheckedAndTheOracleSeesSeveralViews) {
+  const auto throwsWith = [](const servo::TrackerOptions& o, const std::string& what) {
+    try {
+      o.check();
+      ADD_FAILURE() << "expected " << what;
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find(what), std::string::npos) << e.what();
+    }
+  };
+  servo::TrackerOptions o;
+  o.seed_min_facing_cos = 1;
+  throwsWith(o, "TrackerOptions.seed_min_facing_cos");
+  o = servo::TrackerOptions();
+  o.appearance_search_px = std::nan("");
+  throwsWith(o, "TrackerOptions.appearance_search_px");
+  o = servo::TrackerOptions();
+  o.appearance_min_score = -0.1;
+  throwsWith(o, "TrackerOptions.appearance_min_score");
+
+  const servo::OracleEstimator oracle(boxModel());
+  const Intrinsics cam = rt::sceneCamera();
+  std::array<Eigen::Vector2d, 4> corners;
+  // The end of the turn: the front faces away, the +x face is 20 deg from square.
+  ASSERT_TRUE(oracle.visible(boxPose(89, 90), cam, &corners));
+  const auto quads = servo::patternQuads(boxModel());
+  EXPECT_LT((corners[2] - cam.project(boxPose(89, 90) * quads[1][2])).norm(), 1e-9);
+  // Turned half-way round: the photographed faces are all away or edge-on.
+  EXPECT_FALSE(oracle.visible(Pose(rotY(M_PI), Eigen::Vector3d(0, 0, 0.6)), cam));
 }
