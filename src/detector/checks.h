@@ -13,6 +13,8 @@
 //      the whole pattern and cell by cell (more cells for a reference with repeat periods);
 //   5. alternatives a repeat period away (periods.h): a better one replaces the instance, an
 //      ambiguous one refuses it.
+// A cylinder on its cylinder model (RegisteredObject::cylinder_model) takes its own path instead:
+// detector/cylinder_detection.h.
 // Internal to the detector library.
 #include "detector/registered_object.h"
 

@@ -166,11 +166,13 @@ CylinderDenseResult refineCylinderPoseDense(const CylinderLabel& L, const std::v
       hi = hi.cwiseMax(p);
     }
     const int pad = static_cast<int>(std::ceil(3 * sigma)) + 8;
-    if (!(lo.x() < hi.x() && lo.y() < hi.y()) || hi.x() - lo.x() > 4.0 * scene.cols || hi.y() - lo.y() > 4.0 * scene.rows)
+    if (!(lo.x() < hi.x() && lo.y() < hi.y()) || hi.x() - lo.x() > 4.0 * scene.cols ||
+        hi.y() - lo.y() > 4.0 * scene.rows)
       return res;
-    const cv::Rect box = cv::Rect(cv::Point(static_cast<int>(std::floor(lo.x())) - pad, static_cast<int>(std::floor(lo.y())) - pad),
-                                  cv::Point(static_cast<int>(std::ceil(hi.x())) + pad, static_cast<int>(std::ceil(hi.y())) + pad)) &
-                         cv::Rect(0, 0, scene.cols, scene.rows);
+    const cv::Rect box =
+        cv::Rect(cv::Point(static_cast<int>(std::floor(lo.x())) - pad, static_cast<int>(std::floor(lo.y())) - pad),
+                 cv::Point(static_cast<int>(std::ceil(hi.x())) + pad, static_cast<int>(std::ceil(hi.y())) + pad)) &
+        cv::Rect(0, 0, scene.cols, scene.rows);
     if (box.width < 4 || box.height < 4) return res;
     const SceneLevel s = sceneLevel(scene, box, sigma);
     if (first) {

@@ -18,11 +18,11 @@
 namespace refgrasp::detector {
 
 struct CylinderDenseResult {
-  bool ok = false;          ///< converged to a finite pose
-  Pose cMo;                 ///< refined (the input when !ok)
+  bool ok = false;                ///< converged to a finite pose
+  Pose cMo;                       ///< refined (the input when !ok)
   double correlation_before = 0;  ///< zero-mean NCC of label and scene samples, at the input pose
   double correlation_after = 0;   ///< ... at the refined pose (both on the finest smoothing)
-  int samples = 0;          ///< label samples compared (visible, in the image)
+  int samples = 0;                ///< label samples compared (visible, in the image)
 };
 
 /// label_pyramid: level 0 the label image (CV_8UC1), each next one pyrDown. scene: CV_8UC1 of

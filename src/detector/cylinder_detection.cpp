@@ -105,27 +105,30 @@ double residualPx(const Pose& cMo, const Eigen::Matrix3d& K, const Eigen::Vector
 // Median and RMS reprojection error (px) of the pairs at cMo; infinite without pairs.
 double medianResidual(const Pairs& p, const Pose& cMo, const Eigen::Matrix3d& K) {
   std::vector<double> r;
-  for (int i = 0; i < p.size(); ++i) r.push_back(residualPx(cMo, K, p.X[static_cast<size_t>(i)], p.y[static_cast<size_t>(i)]));
+  for (int i = 0; i < p.size(); ++i)
+    r.push_back(residualPx(cMo, K, p.X[static_cast<size_t>(i)], p.y[static_cast<size_t>(i)]));
   if (r.empty()) return std::numeric_limits<double>::infinity();
   std::nth_element(r.begin(), r.begin() + static_cast<long>(r.size() / 2), r.end());
   return r[r.size() / 2];
 }
 double rmsResidual(const Pairs& p, const Pose& cMo, const Eigen::Matrix3d& K) {
   double s = 0;
-  for (int i = 0; i < p.size(); ++i) s += std::pow(residualPx(cMo, K, p.X[static_cast<size_t>(i)], p.y[static_cast<size_t>(i)]), 2);
+  for (int i = 0; i < p.size(); ++i)
+    s += std::pow(residualPx(cMo, K, p.X[static_cast<size_t>(i)], p.y[static_cast<size_t>(i)]), 2);
   return p.size() > 0 ? std::sqrt(s / p.size()) : std::numeric_limits<double>::infinity();
 }
 
 // Huber LM over the pairs from `start`, then again over those within the inlier bound of the
 // result. Keeps the kept pairs in *p. ok = false when fewer than 6 remain or LM fails.
-PoseResult refitRobustly(Pairs* p, const Pose& start, const Eigen::Matrix3d& K, const PoseOptions& po) {
+PoseResult refitRobustly(Pairs* p, const Pose& start, const Eigen::Matrix3d& K, const PoseOptions& po,
+                         double floor_px = kMinInlierPx) {
   PoseResult r;
   if (p->size() < 6) return r;
   r = refinePoseLM(p->X, p->y, K, start, po.refined_lm_iterations, po.huber_px, p->sigma);
   if (!r.ok || !r.cMo.isFinite()) return PoseResult{};
   Pairs kept;
   for (int i = 0; i < p->size(); ++i)
-    if (residualPx(r.cMo, K, p->X[i], p->y[i]) <= std::max(kMinInlierPx, kInlierSigmas * p->sigma[i])) {
+    if (residualPx(r.cMo, K, p->X[i], p->y[i]) <= std::max(floor_px, kInlierSigmas * p->sigma[i])) {
       kept.X.push_back(p->X[i]);
       kept.y.push_back(p->y[i]);
       kept.sigma.push_back(p->sigma[i]);
@@ -138,7 +141,9 @@ PoseResult refitRobustly(Pairs* p, const Pose& start, const Eigen::Matrix3d& K, 
   return r;
 }
 
-// Step 2: robust PnP on the band's matches, then refitRobustly.
+// Step 2: robust PnP on the band's matches, then refitRobustly on its inliers, keeping those
+// within ransac_reproj_px (the band's own bound: a pose from a narrow band is not yet precise;
+// the expansion tightens it).
 PoseResult initialPose(Pairs* p, const Eigen::Matrix3d& K, const DetectorOptions& opt) {
   if (p->size() < 6) return {};
   std::vector<cv::Point3d> obj;
@@ -152,14 +157,28 @@ PoseResult initialPose(Pairs* p, const Eigen::Matrix3d& K, const DetectorOptions
     for (int c = 0; c < 3; ++c) Kcv.at<double>(r, c) = K(r, c);
   cv::Mat rvec, tvec;
   std::vector<int> inl;
-  const bool ok = cv::solvePnPRansac(obj, img, Kcv, cv::noArray(), rvec, tvec, false, kPnpIterations,
-                                     static_cast<float>(opt.match.ransac_reproj_px), kPnpConfidence, inl,
-                                     cv::SOLVEPNP_SQPNP);
+  bool ok = false;
+  try {  // degenerate points (all on one line): no pose for this candidate, the frame goes on
+    ok = cv::solvePnPRansac(obj, img, Kcv, cv::noArray(), rvec, tvec, false, kPnpIterations,
+                            static_cast<float>(opt.match.ransac_reproj_px), kPnpConfidence, inl, cv::SOLVEPNP_SQPNP);
+  } catch (const cv::Exception&) {
+    ok = false;
+  }
   if (!ok || rvec.empty() || tvec.empty()) return {};
-  const Pose start = Pose::fromRotationVector(Eigen::Vector3d(rvec.at<double>(0), rvec.at<double>(1), rvec.at<double>(2)),
-                                              Eigen::Vector3d(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2)));
+  const Pose start =
+      Pose::fromRotationVector(Eigen::Vector3d(rvec.at<double>(0), rvec.at<double>(1), rvec.at<double>(2)),
+                               Eigen::Vector3d(tvec.at<double>(0), tvec.at<double>(1), tvec.at<double>(2)));
   if (!start.isFinite()) return {};
-  return refitRobustly(p, start, K, opt.pose_options);
+  Pairs in;  // RANSAC's inliers
+  for (const int i : inl) {
+    if (i < 0 || i >= p->size()) continue;
+    in.X.push_back(p->X[static_cast<size_t>(i)]);
+    in.y.push_back(p->y[static_cast<size_t>(i)]);
+    in.sigma.push_back(p->sigma[static_cast<size_t>(i)]);
+    in.from.push_back(p->from[static_cast<size_t>(i)]);
+  }
+  *p = std::move(in);
+  return refitRobustly(p, start, K, opt.pose_options, std::max(kMinInlierPx, opt.match.ransac_reproj_px));
 }
 
 float squaredL2(const float* a, const float* b) {
@@ -268,14 +287,17 @@ bool sampleComparison(const RegisteredObject& obj, const VisibleLabel& part, con
       const Eigen::Vector2d uv(part.u0 + (i + 0.5) * w_ref / kCoarse, part.v0 + (j + 0.5) * h_ref / kCoarse);
       Eigen::Vector2d xs;
       Eigen::Matrix2d J;
-      if (projectLabel(L, cMo, K, uv, &xs, &J)) a_scene += std::abs(J.determinant()) * w_ref * h_ref / (kCoarse * kCoarse);
+      if (projectLabel(L, cMo, K, uv, &xs, &J))
+        a_scene += std::abs(J.determinant()) * w_ref * h_ref / (kCoarse * kCoarse);
     }
   const double a_ref = w_ref * h_ref;
   if (!(a_scene > 16) || !(a_ref > 0) || !std::isfinite(a_scene)) return false;
-  const double s = std::min(vo.compare_px / std::max(w_ref, h_ref), std::sqrt(a_scene / a_ref));  // grid px per label px
+  const double s =
+      std::min(vo.compare_px / std::max(w_ref, h_ref), std::sqrt(a_scene / a_ref));  // grid px per label px
   const int tw = std::max(4, static_cast<int>(std::ceil(w_ref * s)));
   const int th = std::max(4, static_cast<int>(std::ceil(h_ref * s)));
-  const int L_level = std::clamp(static_cast<int>(std::floor(std::log2(1 / s))), 0, static_cast<int>(obj.pyramid.size()) - 1);
+  const int L_level =
+      std::clamp(static_cast<int>(std::floor(std::log2(1 / s))), 0, static_cast<int>(obj.pyramid.size()) - 1);
   const double ls = std::ldexp(1.0, L_level);
   cv::Mat mapx(th, tw, CV_32F), mapy(th, tw, CV_32F), smx(th, tw, CV_32F), smy(th, tw, CV_32F);
   cv::Mat front(th, tw, CV_8UC1, cv::Scalar(0));
@@ -314,7 +336,8 @@ bool sampleComparison(const RegisteredObject& obj, const VisibleLabel& part, con
     if (step > 1.2) cv::GaussianBlur(img, out, cv::Size(0, 0), 0.45 * step);
     return out;
   };
-  const cv::Mat sc = lowpass(scene(crop), scene_step), ref = lowpass(obj.pyramid[static_cast<size_t>(L_level)], ref_step);
+  const cv::Mat sc = lowpass(scene(crop), scene_step),
+                ref = lowpass(obj.pyramid[static_cast<size_t>(L_level)], ref_step);
   smx -= static_cast<float>(crop.x);
   smy -= static_cast<float>(crop.y);
   cv::Mat a, b, inside;
@@ -335,7 +358,7 @@ bool sampleComparison(const RegisteredObject& obj, const VisibleLabel& part, con
   return true;
 }
 
-// Step 4's photometric check: VerifyOptions' rules over the visible part (overall correlation,
+// Step 5's photometric check: VerifyOptions' rules over the visible part (overall correlation,
 // half the textured 3 x 3 cells agreeing, min_strong_cells strongly).
 bool labelAgrees(const RegisteredObject& obj, const VisibleLabel& part, const Pose& cMo, const cv::Mat& scene,
                  const Intrinsics& cam, const VerifyOptions& vo, double* corr) {
@@ -352,8 +375,8 @@ bool labelAgrees(const RegisteredObject& obj, const VisibleLabel& part, const Po
   int cells = 0, agreeing = 0, strong = 0;
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) {
-      const double x = correlation(c, cv::Rect(j * tw / 3, i * th / 3, (j + 1) * tw / 3 - j * tw / 3,
-                                               (i + 1) * th / 3 - i * th / 3));
+      const double x = correlation(
+          c, cv::Rect(j * tw / 3, i * th / 3, (j + 1) * tw / 3 - j * tw / 3, (i + 1) * th / 3 - i * th / 3));
       if (std::isnan(x)) continue;
       ++cells;
       agreeing += x >= vo.min_correlation;
@@ -559,7 +582,7 @@ Verdict verifyCylinderCandidate(const CandidateContext& ctx, const MatchCandidat
       pairs = std::move(more);
     }
   }
-  // The photometric refinement replaces the features' pose when the label agrees better with
+  // Step 4: the photometric refinement replaces the features' pose when the label agrees better with
   // the scene there and the features still fit it.
   if (ctx.scene.image.type() == CV_8UC1) {
     const CylinderDenseResult dense =
@@ -573,7 +596,7 @@ Verdict verifyCylinderCandidate(const CandidateContext& ctx, const MatchCandidat
   d.cMo = pose.cMo;
   d.pose_rms_px = pose.rms_px;
   d.inliers = pairs.size();
-  // Step 4: the matcher's band must lie where the pose puts it (a pose caught in a wrong
+  // Step 5: the matcher's band must lie where the pose puts it (a pose caught in a wrong
   // minimum, or pulled by the expansion onto look-alikes, does not explain it).
   if (!(medianResidual(matched_pairs, pose.cMo, K) <= opt.match.ransac_reproj_px)) {
     verdict.outcome = CheckOutcome::kPoseDisagrees;
@@ -585,9 +608,11 @@ Verdict verifyCylinderCandidate(const CandidateContext& ctx, const MatchCandidat
     verdict.outcome = CheckOutcome::kNotVerified;
     return verdict;
   }
-  const std::array<Eigen::Vector2d, 4> label_corners = {Eigen::Vector2d(part->u0, part->v0), Eigen::Vector2d(part->u1, part->v0),
-                                                        Eigen::Vector2d(part->u1, part->v1), Eigen::Vector2d(part->u0, part->v1)};
-  for (int i = 0; i < 4; ++i) d.corners[static_cast<size_t>(i)] = ctx.camera.project(pose.cMo * L.point(label_corners[static_cast<size_t>(i)]));
+  const std::array<Eigen::Vector2d, 4> label_corners = {
+      Eigen::Vector2d(part->u0, part->v0), Eigen::Vector2d(part->u1, part->v0), Eigen::Vector2d(part->u1, part->v1),
+      Eigen::Vector2d(part->u0, part->v1)};
+  for (int i = 0; i < 4; ++i)
+    d.corners[static_cast<size_t>(i)] = ctx.camera.project(pose.cMo * L.point(label_corners[static_cast<size_t>(i)]));
   d.sanity = checkDetection(d.corners, d.cMo, ctx.camera.width, ctx.camera.height, opt.sanity);
   if (d.sanity != SanityStatus::kOk) {
     verdict.outcome = CheckOutcome::kSanity;

@@ -10,13 +10,15 @@
 //      homography). A full-wrap label is matched a second time rolled by W/2 (its seam in the
 //      middle), so that a view centred on the seam is found too.
 //   2. Pose: the band's inliers, reference px -> label points on the surface
-//      (CylinderLabel::point), robust PnP (SQPnP in RANSAC), then Huber LM (refinePoseLM, sigma
-//      from the scene keypoint size).
+//      (CylinderLabel::point), robust PnP (SQPnP in RANSAC), then Huber LM on its inliers
+//      (refinePoseLM, sigma from the scene keypoint size).
 //   3. Guided expansion, twice: every label feature whose surface point faces the camera is
 //      projected at the pose and matched to the scene features near the prediction (orientation
 //      and size predicted by the local projection's Jacobian, descriptor-nearest, local ratio);
 //      the pose is refitted to them robustly.
-//   4. Checks: the matcher's band consensus must agree with the pose; the sanity check on the
+//   4. Photometric refinement of the pose over the visible label (cylinder_dense.h), kept when the
+//      label agrees better with the scene and the expanded features still fit.
+//   5. Checks: the matcher's band consensus must agree with the pose; the sanity check on the
 //      visible part's projected corners and the distance; the label rendered on the cylinder at
 //      the pose compared with the scene over the visible part only (zero-mean NCC overall and
 //      over 3 x 3 cells, VerifyOptions' thresholds): the hidden half never counts against it.
@@ -46,7 +48,7 @@ void registerCylinder(RegisteredObject* obj, const DetectorOptions& opt);
 MatchResult matchRegistered(const RegisteredObject& obj, const Features& scene, const GridIndex& grid,
                             const MatchOptions& opt);
 
-/// Steps 2-4 on a candidate of matchRegistered for an object with cylinder_model.
+/// Steps 2-5 on a candidate of matchRegistered for an object with cylinder_model.
 Verdict verifyCylinderCandidate(const CandidateContext& ctx, const MatchCandidate& matched);
 
 /// Label px (columns unwrapped around the visible part) of the label's part facing a camera at

@@ -45,8 +45,8 @@ sim::TexturedCylinder LabelledCylinder::body(const Pose& cMo) const {
   return b;
 }
 
-LabelledCylinder labelledCylinder(const std::string& photo, double radius_m, double label_height_m, double wrap_fraction,
-                                  int rows) {
+LabelledCylinder labelledCylinder(const std::string& photo, double radius_m, double label_height_m,
+                                  double wrap_fraction, int rows) {
   LabelledCylinder c;
   c.photo = photo;
   c.name = photo.substr(photo.find_last_of('/') + 1);
@@ -70,9 +70,9 @@ LabelledCylinder labelledCylinder(const std::string& photo, double radius_m, dou
 }
 
 Pose cylinderPose(const Intrinsics& cam, const LabelledCylinder& c, const CylinderViewSpec& s) {
-  const Eigen::Vector3d dir = Eigen::Vector3d(s.offset.x() * (cam.width / 2.0) / cam.fx,
-                                              s.offset.y() * (cam.height / 2.0) / cam.fy, 1)
-                                  .normalized();
+  const Eigen::Vector3d dir =
+      Eigen::Vector3d(s.offset.x() * (cam.width / 2.0) / cam.fx, s.offset.y() * (cam.height / 2.0) / cam.fy, 1)
+          .normalized();
   const Eigen::Matrix3d R = axisAngle(Eigen::Vector3d::UnitZ(), s.roll_rad) *
                             axisAngle(Eigen::Vector3d::UnitX(), s.tilt_rad) *
                             axisAngle(Eigen::Vector3d::UnitY(), s.turn_rad);

@@ -29,9 +29,9 @@ struct LabelledCylinder {
   std::string photo;  ///< media path the label was cut from
   cv::Mat label;      ///< CV_8UC1, columns along the circumference
   double radius_m = 0.033;
-  double label_width_m = 0;   ///< arc length (2 pi r: all the way round)
+  double label_width_m = 0;  ///< arc length (2 pi r: all the way round)
   double label_height_m = 0;
-  double height_m = 0;        ///< the whole side (>= label_height_m)
+  double height_m = 0;  ///< the whole side (>= label_height_m)
 
   detector::ObjectModel object() const;
   sim::TexturedCylinder body(const Pose& cMo) const;
@@ -40,22 +40,23 @@ struct LabelledCylinder {
 /// A label cut from a media photo (the largest centred crop of the label's aspect, resized to
 /// `rows` rows, gray): radius_m, label height, and the fraction of the circumference it covers
 /// (1: all the way round).
-LabelledCylinder labelledCylinder(const std::string& photo, double radius_m, double label_height_m, double wrap_fraction,
-                                  int rows = 200);
+LabelledCylinder labelledCylinder(const std::string& photo, double radius_m, double label_height_m,
+                                  double wrap_fraction, int rows = 200);
 
 /// Where the cylinder stands in a view.
 struct CylinderViewSpec {
-  double distance_m = 0.5;     ///< camera centre to the axis' middle
-  double turn_rad = 0;         ///< about its axis: the label column at theta = turn faces the camera
-  double tilt_rad = 0;         ///< axis tilted towards (+) or away from the camera, about camera x
-  double roll_rad = 0;         ///< axis turned in the image plane
-  Eigen::Vector2d offset = Eigen::Vector2d::Zero();  ///< axis' middle off the optical axis, fraction of the half-view (-1..1)
-  std::string backdrop;        ///< "" : photo clutter (seeded); else a media path resized to the frame
+  double distance_m = 0.5;  ///< camera centre to the axis' middle
+  double turn_rad = 0;      ///< about its axis: the label column at theta = turn faces the camera
+  double tilt_rad = 0;      ///< axis tilted towards (+) or away from the camera, about camera x
+  double roll_rad = 0;      ///< axis turned in the image plane
+  Eigen::Vector2d offset =
+      Eigen::Vector2d::Zero();  ///< axis' middle off the optical axis, fraction of the half-view (-1..1)
+  std::string backdrop;         ///< "" : photo clutter (seeded); else a media path resized to the frame
   /// Photos (media paths) kept out of the photo clutter, besides the cylinder's own label photo.
   std::vector<std::string> exclude_from_backdrop;
-  double noise_sigma = 2;      ///< gray levels
+  double noise_sigma = 2;  ///< gray levels
   double motion_blur_px = 0;
-  int jpeg_quality = 0;        ///< 1-100, 0: none
+  int jpeg_quality = 0;  ///< 1-100, 0: none
   uint64_t seed = 0;
 };
 

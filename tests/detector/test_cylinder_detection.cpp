@@ -32,9 +32,9 @@ std::vector<LabelledCylinder> testCans() {
 }
 
 // Backdrops: photo clutter (empty), the project's rendered backgrounds and clutter textures.
-const std::vector<std::string> kBackdrops = {"", "backgrounds/wall.png", "backgrounds/table_wood.png",
-                                             "clutter/clutter_02.png", "", "backgrounds/floor.png",
-                                             "clutter/clutter_06.png"};
+const std::vector<std::string> kBackdrops = {
+    "", "backgrounds/wall.png",  "backgrounds/table_wood.png", "clutter/clutter_02.png",
+    "", "backgrounds/floor.png", "clutter/clutter_06.png"};
 
 DetectorOptions paperOptions() {
   DetectorOptions o;
@@ -55,7 +55,8 @@ TEST(CylinderDetection, PoseWithin2DegAnd2PercentOnRenderedCans) {
     paper.addObject(can.object());
     std::mt19937_64 rng(seed++);
     const bool full = can.label_width_m > 6 * can.radius_m;
-    std::vector<CylinderViewSpec> specs = eval::randomCylinderViews(rng, 16, 0.3, 1.5, full ? M_PI : 80 * kDeg, 20 * kDeg);
+    std::vector<CylinderViewSpec> specs =
+        eval::randomCylinderViews(rng, 16, 0.3, 1.5, full ? M_PI : 80 * kDeg, 20 * kDeg);
     for (size_t k = 0; k < specs.size(); ++k) specs[k].backdrop = kBackdrops[(k + seed) % kBackdrops.size()];
     for (const CylinderViewSpec& s : specs) {
       const eval::CylinderView v = eval::renderCylinderView(cam, &can, s);
@@ -75,8 +76,8 @@ TEST(CylinderDetection, PoseWithin2DegAnd2PercentOnRenderedCans) {
       }
       if (!e.within())
         misses << "\n  " << can.name << " at " << s.distance_m << " m, turned " << s.turn_rad / kDeg << " deg (visible "
-                      << v.visible_width_px << " px): found " << e.found << ", " << e.rotation_deg << " deg, "
-                      << 100 * e.translation_fraction << " % (" << missReasonName(r.stats[0].miss) << ")";
+               << v.visible_width_px << " px): found " << e.found << ", " << e.rotation_deg << " deg, "
+               << 100 * e.translation_fraction << " % (" << missReasonName(r.stats[0].miss) << ")";
     }
   }
   ASSERT_GE(counted, 20) << "too few views the bar applies to";
@@ -88,7 +89,6 @@ TEST(CylinderDetection, PoseWithin2DegAnd2PercentOnRenderedCans) {
   printf("cylinder model: %d / %d within 2 deg and 2 %% (mean rotation error %.2f deg); planar approximation: %d\n",
          within, counted, rot_sum / std::max(1, counted), paper_within);
 }
-
 
 TEST(CylinderDetection, NoFalsePositivesOnClutterWithoutTheCans) {
   // Every test can registered, with a planar object beside them; clutter frames with other
@@ -235,8 +235,8 @@ TEST(CylinderDetection, StereoPriorsAlignPoseAndTwoDOnlyObjectsBeside) {
   EXPECT_LT(roi.area(), cam.width * cam.height / 3) << "the can's region, not the frame";
   EXPECT_GT(pr.stats[static_cast<size_t>(id)].min_keypoint_px, 0);
   const auto pe = eval::cylinderPoseError(pr.find(id), cMo);
-  EXPECT_TRUE(pe.within()) << pe.found << " " << pe.rotation_deg << " deg " << 100 * pe.translation_fraction << " % roi "
-                           << roi << " sizes " << pr.stats[static_cast<size_t>(id)].min_keypoint_px << "-"
+  EXPECT_TRUE(pe.within()) << pe.found << " " << pe.rotation_deg << " deg " << 100 * pe.translation_fraction
+                           << " % roi " << roi << " sizes " << pr.stats[static_cast<size_t>(id)].min_keypoint_px << "-"
                            << pr.stats[static_cast<size_t>(id)].max_keypoint_px << " miss "
                            << missReasonName(pr.stats[static_cast<size_t>(id)].miss);
   EXPECT_EQ(pr.stats[static_cast<size_t>(flat)].miss, MissReason::kNotSearched);
@@ -284,7 +284,6 @@ TEST(CylinderDetection, BadGeometryNeverCrashes) {
   EXPECT_TRUE(det.detect(cv::Mat(cam.height, cam.width, CV_8UC1, cv::Scalar(128)), cam).ok);
 }
 
-
 TEST(CylinderDetection, PhotometricRefinementPullsAPoseOffByAFewDegreesBack) {
   // Started 3 deg and 3 mm off the rendered pose, the refinement ends near it (no noise: what
   // remains is the refinement's own bias and the renderer's sampling).
@@ -301,11 +300,13 @@ TEST(CylinderDetection, PhotometricRefinementPullsAPoseOffByAFewDegreesBack) {
         s.seed = 3;
         s.backdrop = "backgrounds/wall.png";
         const eval::CylinderView v = eval::renderCylinderView(cam, &can, s);
-        const Pose start = v.cMo * Pose(axisAngle(Eigen::Vector3d(0.3, 1, 0.2), 3 * kDeg), Eigen::Vector3d(0.003, -0.002, 0.002));
+        const Pose start =
+            v.cMo * Pose(axisAngle(Eigen::Vector3d(0.3, 1, 0.2), 3 * kDeg), Eigen::Vector3d(0.003, -0.002, 0.002));
         const CylinderDenseResult r = refineCylinderPoseDense(*m.cylinder, reg.pyramid, v.image, cam, start, 0.5);
         ASSERT_TRUE(r.ok);
         EXPECT_LT(rotationError(r.cMo, v.cMo), 1.2 * kDeg) << can.name << " at " << distance << " m turned " << turn;
-        EXPECT_LT(translationError(r.cMo, v.cMo), 0.004 * distance) << can.name << " at " << distance << " m turned " << turn;
+        EXPECT_LT(translationError(r.cMo, v.cMo), 0.004 * distance)
+            << can.name << " at " << distance << " m turned " << turn;
         EXPECT_GT(r.correlation_after, r.correlation_before);
       }
   }
