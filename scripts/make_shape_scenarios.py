@@ -29,7 +29,7 @@ import struct
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from make_grasp_scenarios import FAULTS, ROOT, TABLE_DEPTH, TABLE_H, TABLE_WIDTH, fmt, rotvec, upright  # noqa: E402
+from make_grasp_scenarios import FAULTS, ROOT, TABLE_DEPTH, TABLE_H, fmt, rotvec, upright, world_head  # noqa: E402
 
 # The grasp frame (the target's centre) this far behind the table's front edge: as in the photo
 # worlds (9 cm + half a 7 cm box) and can_table; the arm reaches over the edge from a base that
@@ -94,33 +94,13 @@ def image_size(rel):
     raise ValueError(rel + ": no image size found")
 
 
-def header(text):
-    return ["# %s. Written by scripts/make_shape_scenarios.py (geometry rules there);"
-            % (text[0].upper() + text[1:]),
-            "# format: README.md in this folder."]
-
-
 def room_and_table(wd, c, psi, near_m):
-    """The room and a table whose front edge is perpendicular to the grasp's approach (heading
-    psi), GRASP_DEPTH before the grasp frame's origin c (x, y), or ON_TABLE before the approach
-    face (near_m before c along the approach) when that is further."""
+    """The world's first lines up to `objects:`, with a table whose front edge is perpendicular to
+    the grasp's approach (heading psi), GRASP_DEPTH before the grasp frame's origin c (x, y), or
+    ON_TABLE before the approach face (near_m before c along the approach) when that is further."""
     back = TABLE_DEPTH / 2 - max(GRASP_DEPTH, near_m + ON_TABLE)
     table_c = [c[0] + back * math.cos(psi), c[1] + back * math.sin(psi)]
-    return ["seed: %d" % wd["seed"],
-            "max_duration_s: 120",
-            "robot_start: {x: 0.0, y: 0.0, theta: 0.0}",
-            "background: ../../media/backgrounds/wall.png",
-            "room:",
-            "  size_m: [8.0, 8.0]",
-            "  centre: [1.5, 0.0]",
-            "  floor_texture: ../../media/backgrounds/floor.png",
-            "  wall_texture: ../../media/backgrounds/wall.png",
-            "  wall_height_m: 2.5",
-            "table:",
-            "  size_m: [%.2f, %.2f, %.2f]" % (TABLE_DEPTH, TABLE_WIDTH, TABLE_H),
-            "  pose: {translation: %s, rotation_vector: %s}" % (fmt([table_c[0], table_c[1], 0.0]), fmt([0, 0, psi])),
-            "  texture: ../../media/backgrounds/table_wood.png",
-            "objects:"]
+    return world_head("make_shape_scenarios.py", wd, table_c, psi)
 
 
 def distractors(wd, psi):
@@ -184,7 +164,7 @@ def write_cylinder(wd):
     phi = b + t  # z_o (into the can at the label's centre) points at this heading
     axis = [wd["distance"] * math.cos(b), wd["distance"] * math.sin(b)]
     origin = [axis[0] - r * math.cos(phi), axis[1] - r * math.sin(phi), TABLE_H + wd["height"] / 2]
-    lines = header(wd["text"]) + room_and_table(wd, axis, b, r)
+    lines = room_and_table(wd, axis, b, r)
     lines += ["  - name: %s" % name,
               "    target: true",
               "    definition: ../objects/%s.yaml" % name,
@@ -265,7 +245,7 @@ def write_box(wd):
     gp = [centre[0] - (half - depth) * zg[0], centre[1] - (half - depth) * zg[1]]
     g_o = [-(half - depth) * math.sin(approach), 0.0, D / 2 - (half - depth) * math.cos(approach)]
     faces = ", ".join("%s: ../../%s" % (f, PHOTOS[p]) for f, p in wd["faces"].items())
-    lines = header(wd["text"]) + room_and_table(wd, gp, psi, depth)
+    lines = room_and_table(wd, gp, psi, depth)
     lines += ["  - name: %s" % name,
               "    target: true",
               "    definition: ../objects/%s.yaml" % name,
