@@ -221,7 +221,8 @@ TEST(HostileEnonGrasp, BadOptionsFilesAndOutputsAreOneLineWithTheDocumentedCodes
 // grasps it (one view, table_single's cereal box, with the oracle); pose_replay detects it in
 // every frame.
 TEST(HostileSeveralViews, EnonGraspGraspsItAndPoseReplayDetectsIt) {
-  const std::string box = write("box_views.yaml", "views:\n  - definition: " + kSource +
+  // Named as the scenario's object: the simulator's ground truth (the oracle's) is by that name.
+  const std::string box = write("box_views.yaml", "name: cereal_box\nviews:\n  - definition: " + kSource +
                                                       "/config/objects/cereal_box.yaml\n"
                                                       "    oMv: {translation: [0, 0, 0], rotation_vector: [0, 0, 0]}\n");
   const AppRun g = run("enon_grasp", "--backend sim --enon " + kEnon + " --scenario " +
