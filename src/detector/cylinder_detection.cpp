@@ -44,18 +44,19 @@ double wrapPi(double a) {
   return a - kPi;
 }
 
-// Label px of a candidate's reference feature (matchRegistered's numbering) and its keypoint.
-Eigen::Vector2d labelPx(const RegisteredObject& obj, int ref, const cv::KeyPoint** kp) {
+// Label px of a candidate's reference feature (matchRegistered's numbering: a seam index's
+// features count on from the label index's).
+Eigen::Vector2d labelPx(const RegisteredObject& obj, int ref) {
   const int n = obj.index.features.size();
   if (ref < n) {
-    *kp = &obj.index.features.keypoints[static_cast<size_t>(ref)];
-    return Eigen::Vector2d((*kp)->pt.x, (*kp)->pt.y);
+    const cv::Point2f& p = obj.index.features.keypoints[static_cast<size_t>(ref)].pt;
+    return Eigen::Vector2d(p.x, p.y);
   }
-  *kp = &obj.seam_index->features.keypoints[static_cast<size_t>(ref - n)];
+  const cv::Point2f& p = obj.seam_index->features.keypoints[static_cast<size_t>(ref - n)].pt;
   const int W = obj.model.cylinder->image_width;
-  double u = (*kp)->pt.x + W / 2;
+  double u = p.x + W / 2;
   if (u > W - 0.5) u -= W;
-  return Eigen::Vector2d(u, (*kp)->pt.y);
+  return Eigen::Vector2d(u, p.y);
 }
 
 // Label px -> undistorted scene px at cMo, and its Jacobian d(scene px) / d(label px). False
@@ -558,9 +559,8 @@ Verdict verifyCylinderCandidate(const CandidateContext& ctx, const MatchCandidat
   // Step 2: the band's matches on the surface.
   Pairs band;
   for (const Correspondence& c : matched.inliers) {
-    const cv::KeyPoint* kr = nullptr;
-    const Eigen::Vector2d uv = labelPx(obj, c.ref, &kr);
-    band.add(L, uv, ctx.scene.keypoints[static_cast<size_t>(c.scene)], c, opt.pose_options.keypoint_sigma_per_size);
+    band.add(L, labelPx(obj, c.ref), ctx.scene.keypoints[static_cast<size_t>(c.scene)], c,
+             opt.pose_options.keypoint_sigma_per_size);
   }
   const Pairs matched_pairs = band;
   PoseResult pose = initialPose(&band, K, opt);

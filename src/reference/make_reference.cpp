@@ -4,10 +4,7 @@
 #include <visp3/detection/vpDetectorAprilTag.h>
 
 #include <algorithm>
-#include <cerrno>
 #include <cmath>
-#include <cstdio>
-#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -18,15 +15,15 @@
 
 #include "core/error.h"
 #include "detector/draw.h"
-#include "detector/object.h"
+#include "reference/definition_text.h"
 
 namespace refgrasp::reference {
 
-namespace fs = std::filesystem;
+using detail::refuse;
+using detail::yamlNumber;
+using detail::yamlQuoted;
 
 namespace {
-
-[[noreturn]] void refuse(const std::string& what) { throw std::invalid_argument(what); }
 
 double cross(const Eigen::Vector2d& a, const Eigen::Vector2d& b) { return a.x() * b.y() - a.y() * b.x(); }
 
@@ -178,29 +175,6 @@ std::vector<Eigen::Vector2d> photoMinusTag(const std::array<Eigen::Vector2d, 4>&
   return poly;
 }
 
-std::string yamlNumber(double v) {
-  char buf[40];
-  std::snprintf(buf, sizeof(buf), "%.10g", v);
-  return buf;
-}
-
-std::string relativeTo(const std::string& path, const fs::path& dir) {
-  std::error_code ec;
-  const fs::path rel = fs::relative(fs::absolute(path), fs::absolute(dir.empty() ? "." : dir), ec);
-  return ec || rel.empty() ? fs::absolute(path).string() : rel.string();
-}
-
-// A YAML double-quoted scalar: a name or path with ':', '#' or a newline stays one value
-// (oneLine's escapes \n, \t, \xNN are YAML's own).
-std::string yamlQuoted(const std::string& s) {
-  std::string quoted;
-  for (const char c : s) {
-    if (c == '"' || c == '\\') quoted += '\\';
-    quoted += c;
-  }
-  return "\"" + oneLine(quoted, size_t{1} << 40) + "\"";
-}
-
 }  // namespace
 
 Reference fromCorners(const std::array<Eigen::Vector2d, 4>& corners_px, double width_m,
@@ -268,11 +242,8 @@ Reference fromTag(const cv::Mat& photo, const Intrinsics& camera, const TagOptio
 void writeObjectDefinition(const std::string& yaml_path, const std::string& name,
                            const std::string& photo_path, const std::string& camera_path,
                            const Reference& ref) {
-  const fs::path dir = fs::path(yaml_path).parent_path();
-  std::error_code ec;
-  if (!dir.empty()) fs::create_directories(dir, ec);
-  std::ofstream out(yaml_path);
-  if (!out) throw OutputError(yaml_path, std::string("cannot open for writing: ") + std::strerror(errno));
+  const std::filesystem::path dir = std::filesystem::path(yaml_path).parent_path();
+  std::ofstream out = detail::openDefinition(yaml_path);
   const Eigen::Vector3d t = ref.cMo.t, rv = ref.cMo.rotationVector();
   out << "# Object definition (docs/formats.md \"Object definition\") made by make_reference ("
       << ref.method << ", " << yamlNumber(ref.width_m) << " x " << yamlNumber(ref.height_m)
@@ -280,8 +251,8 @@ void writeObjectDefinition(const std::string& yaml_path, const std::string& name
       << "# Object frame: origin at the centre of the " << (ref.method == "corners" ? "rectangle" : "tag")
       << ", x along its top edge, y along its left edge, z into the plane.\n"
       << "name: " << yamlQuoted(name) << "\n"
-      << "reference_image: " << yamlQuoted(relativeTo(photo_path, dir)) << "\n"
-      << "camera: " << yamlQuoted(relativeTo(camera_path, dir)) << "\n"
+      << "reference_image: " << yamlQuoted(detail::relativeTo(photo_path, dir)) << "\n"
+      << "camera: " << yamlQuoted(detail::relativeTo(camera_path, dir)) << "\n"
       << "reference_pose:\n"
       << "  translation: [" << yamlNumber(t.x()) << ", " << yamlNumber(t.y()) << ", " << yamlNumber(t.z())
       << "]   # metres\n"
@@ -294,19 +265,13 @@ void writeObjectDefinition(const std::string& yaml_path, const std::string& name
   out << "]\n";
   if (!ref.region_exact)
     out << "pattern_region_exact: false   # the photo minus the tag: it bounds the pattern, not its outline\n";
-  if (!out.flush()) throw OutputError(yaml_path, std::string("write failed: ") + std::strerror(errno));
-  out.close();
-  detector::loadObjectDefinition(yaml_path);  // the detector must accept what we wrote
+  detail::finishDefinition(out, yaml_path);
 }
 
 cv::Mat drawReference(const cv::Mat& photo, const Reference& ref, const Intrinsics& cam) {
-  cv::Mat img;
-  if (photo.channels() == 1)
-    cv::cvtColor(photo, img, cv::COLOR_GRAY2BGR);
-  else
-    img = photo.clone();
+  cv::Mat img = detail::checkCanvas(photo);
   const auto pt = [](const Eigen::Vector2d& p) { return cv::Point(cvRound(p.x()), cvRound(p.y())); };
-  const int thick = std::max(1, img.cols / 400);
+  const int thick = detail::checkThickness(img);
   std::vector<cv::Point> region;
   for (const auto& p : ref.pattern_region_px) region.push_back(pt(p));
   cv::polylines(img, region, true, cv::Scalar(0, 255, 255), thick, cv::LINE_AA);

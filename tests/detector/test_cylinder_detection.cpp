@@ -312,5 +312,30 @@ TEST(CylinderDetection, PhotometricRefinementPullsAPoseOffByAFewDegreesBack) {
   }
 }
 
+TEST(CylinderDetection, ALensWithDistortionIsHonoured) {
+  // A wide lens with barrel distortion (the Bumblebee2's order of magnitude): the keypoints are
+  // undistorted, the label is projected through the distortion for the refinement and the check.
+  Intrinsics cam = testing::sceneCamera();
+  cam.dist = {-0.25, 0.08, 0.001, -0.0005, 0};
+  const LabelledCylinder can = testCans()[1];
+  Detector det;
+  const int id = det.addObject(can.object());
+  int within = 0, views = 0;
+  for (const double x : {-0.6, 0.0, 0.6}) {
+    CylinderViewSpec s;
+    s.distance_m = 0.5;
+    s.turn_rad = 0.4 * x;
+    s.offset = Eigen::Vector2d(x, 0.4 * x);
+    s.seed = 31;
+    const eval::CylinderView v = eval::renderCylinderView(cam, &can, s);
+    const auto e = eval::cylinderPoseError(det.detect(v.image, cam).find(id), v.cMo);
+    ++views;
+    within += e.within();
+    EXPECT_TRUE(e.within()) << "offset " << x << ": found " << e.found << ", " << e.rotation_deg << " deg, "
+                            << 100 * e.translation_fraction << " %";
+  }
+  EXPECT_EQ(within, views);
+}
+
 }  // namespace
 }  // namespace refgrasp::detector

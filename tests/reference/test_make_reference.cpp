@@ -12,12 +12,14 @@
 #include "core/error.h"
 #include "detector/detector.h"
 #include "reference/make_reference.h"
+#include "refusal.h"
 #include "robot/sim/render.h"
 #include "robot/sim/synthetic_scene.h"
 
 namespace fs = std::filesystem;
 using namespace refgrasp;
 using refgrasp::testing::AppRun;
+using refgrasp::testing::refusal;
 using refgrasp::testing::runApp;
 
 namespace {
@@ -101,15 +103,6 @@ void expectDetectedInANewView(const std::string& yaml, const Pose& oMtruth_frame
   const Pose truth = cMo * oMtruth_frame;
   EXPECT_LT(translationError(*d->cMo, truth), 0.01 * truth.t.norm());
   EXPECT_LT(rotationError(*d->cMo, truth) * kDeg, 1.0);
-}
-
-std::string refusal(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const std::invalid_argument& e) {
-    return e.what();
-  }
-  return "(accepted)";
 }
 
 }  // namespace
