@@ -219,7 +219,7 @@ def write_box(wd):
             out.write("# The %s face of %s (planar form): the real photograph %s as a %.4f x %.4f m\n"
                       "# face, its own reference image. Written by scripts/make_shape_scenarios.py.\n"
                       % (face, name, rel, wm, hm))
-            out.write("name: %s\nreference_image: ../../%s\ncamera: %s_camera.yaml\n" % (face, rel, stem))
+            out.write("name: %s\nreference_image: ../../%s\ncamera: %s_camera.yaml\n" % (stem, rel, stem))
             out.write("reference_pose:\n  translation: [0.0, 0.0, 0.5]\n  rotation_vector: [0.0, 0.0, 0.0]\n")
         views.append("  - definition: %s.yaml\n    oMv: {translation: %s, rotation_vector: %s}\n" % (stem, fmt(centre), fmt(rv)))
     with open(os.path.join(ROOT, "config/objects", name + ".yaml"), "w") as out:
