@@ -56,9 +56,10 @@ struct GraspOptions {
   BaseApproachOptions base;
   ArmAlignOptions arm;
 
-  double pregrasp_distance_m = 0.12;      ///< e* in front of the grasp frame, along -z_g, at least
-  /// ... and at least this far outside the object's extent along -z_g (a grasp frame deep inside
-  /// a large object: the fingers start clear of its face whatever its size).
+  /// e* in front of the grasp frame along -z_g: at least pregrasp_distance_m, and at least
+  /// pregrasp_clearance_m outside the object's extent (a grasp frame deep inside a large object:
+  /// the fingers start clear of its face whatever its size).
+  double pregrasp_distance_m = 0.12;
   double pregrasp_clearance_m = 0.05;
   double approach_arm_tolerance_rad = 0.05;    ///< arm joints at the reaching configuration
   double arm_ready_speed_fraction = 0.6;  ///< of each joint's limit, moving to that configuration
