@@ -113,9 +113,7 @@ int main(int argc, char** argv) try {
       robot::Robot robot(model, std::move(hw), std::move(cam));
       robot.configure();
       robot.activate();
-      Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-      for (const Eigen::Vector3d& c : object.target->corners_o) centre += 0.25 * c;
-      servo::GraspController ctl(robot, est, obj.oMg, centre);
+      servo::GraspController ctl(robot, est, obj.oMg, servo::objectExtent(object));
       const double dt = model.control_period_s;
       ++attempts;
       for (double t = 0; t < 90 && !ctl.finished(); t += dt) {

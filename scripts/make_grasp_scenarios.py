@@ -84,6 +84,28 @@ def fmt(v):
     return "[" + ", ".join("%.4f" % x for x in v) + "]"
 
 
+def world_head(script, wd, table_c, heading):
+    """A world's first lines: what it is, the seed, the robot's start, the room and a table whose
+    footprint centre is table_c (x, y) and whose x axis points at `heading`; up to `objects:`."""
+    return ["# %s. Written by scripts/%s (geometry rules there);" % (wd["text"][0].upper() + wd["text"][1:], script),
+            "# format: README.md in this folder.",
+            "seed: %d" % wd["seed"],
+            "max_duration_s: 120",
+            "robot_start: {x: 0.0, y: 0.0, theta: 0.0}",
+            "background: ../../media/backgrounds/wall.png",
+            "room:",
+            "  size_m: [8.0, 8.0]",
+            "  centre: [1.5, 0.0]",
+            "  floor_texture: ../../media/backgrounds/floor.png",
+            "  wall_texture: ../../media/backgrounds/wall.png",
+            "  wall_height_m: 2.5",
+            "table:",
+            "  size_m: [%.2f, %.2f, %.2f]" % (TABLE_DEPTH, TABLE_WIDTH, TABLE_H),
+            "  pose: {translation: %s, rotation_vector: %s}" % (fmt([table_c[0], table_c[1], 0.0]), fmt([0, 0, heading])),
+            "  texture: ../../media/backgrounds/table_wood.png",
+            "objects:"]
+
+
 def write_object(key, width):
     fname, w_px, h_px = PHOTOS[key]
     f = w_px * 0.5 / width
@@ -117,25 +139,8 @@ def write_world(wd):
     side = [math.sin(phi), -math.cos(phi)]  # x_o: along the face width
     z = TABLE_H + height / 2
     table_c = [p[0] + (TABLE_DEPTH / 2 - EDGE_TO_FACE) * n[0], p[1] + (TABLE_DEPTH / 2 - EDGE_TO_FACE) * n[1]]
-    lines = ["# %s. Written by scripts/make_grasp_scenarios.py (geometry rules there);"
-             % (wd["text"][0].upper() + wd["text"][1:]),
-             "# format: README.md in this folder.",
-             "seed: %d" % wd["seed"],
-             "max_duration_s: 120",
-             "robot_start: {x: 0.0, y: 0.0, theta: 0.0}",
-             "background: ../../media/backgrounds/wall.png",
-             "room:",
-             "  size_m: [8.0, 8.0]",
-             "  centre: [1.5, 0.0]",
-             "  floor_texture: ../../media/backgrounds/floor.png",
-             "  wall_texture: ../../media/backgrounds/wall.png",
-             "  wall_height_m: 2.5",
-             "table:",
-             "  size_m: [%.2f, %.2f, %.2f]" % (TABLE_DEPTH, TABLE_WIDTH, TABLE_H),
-             "  pose: {translation: %s, rotation_vector: %s}" % (fmt([table_c[0], table_c[1], 0.0]), fmt([0, 0, phi])),
-             "  texture: ../../media/backgrounds/table_wood.png",
-             "objects:",
-             "  - name: photo_%s" % wd["photo"],
+    lines = world_head("make_grasp_scenarios.py", wd, table_c, phi)
+    lines += ["  - name: photo_%s" % wd["photo"],
              "    target: true",
              "    definition: ../objects/photo_%s.yaml" % wd["photo"],
              "    shape: box",

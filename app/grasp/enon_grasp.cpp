@@ -87,12 +87,9 @@ EnonGraspResult runEnonGraspSession(const EnonGraspOptions& o, std::FILE* progre
   if (target < 0) throw ConfigError(o.scenario, "objects", "no object with target: true");
   const sim::SimObject& goal = scenario.world.objects[static_cast<size_t>(target)];
   const detector::ObjectModel object = detector::loadObjectDefinition(goal.definition);
-  if (object.isMultiView())
-    throw ConfigError(goal.definition, "views", "several-view objects are not tracked, so not grasped");
-  if (!object.has3d())
+  if (!object.hasPose())
     throw ConfigError(goal.definition, "reference_pose", "required to grasp the object (a 3D pose)");
-  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-  for (const Eigen::Vector3d& c : object.target->corners_o) centre += 0.25 * c;
+  const servo::ObjectExtent extent = servo::objectExtent(object);
 
   o.grasp.check();
   // Cheap checks first (files, options, output folders), then what takes time.
@@ -168,7 +165,7 @@ EnonGraspResult runEnonGraspSession(const EnonGraspOptions& o, std::FILE* progre
   }
   const tool::StopOnError stop_on_error([&] { robot->stop(); });  // an exception in the loop
   if (o.interruptible) tool::flagOnSignal();
-  servo::GraspController ctl(*robot, *est, goal.oMg, centre, o.grasp);
+  servo::GraspController ctl(*robot, *est, goal.oMg, extent, o.grasp);
   const double dt = model.control_period_s;
   const double max_time = o.max_time_s > 0 ? o.max_time_s : scenario.max_duration_s;
   const bool realtime = o.backend != "sim";

@@ -128,10 +128,9 @@ cv::Mat GraspVideo::draw(const servo::GraspIteration& it, const detector::Object
     for (const Eigen::Vector2d& c : *o.corners) poly.emplace_back(cvRound(c.x()), cvRound(c.y()));
     cv::polylines(img, poly, true, outline, 2, cv::LINE_AA);
   }
-  if (o.cMo && target.has3d()) {
-    const auto& c = target.target->corners_o;
-    const double length = 0.5 * std::max((c[1] - c[0]).norm(), (c[3] - c[0]).norm());
-    detector::drawAxes(img, camera, *o.cMo, length);
+  if (o.cMo && target.hasPose()) {
+    const servo::ObjectExtent e = servo::objectExtent(target);
+    detector::drawAxes(img, camera, *o.cMo, 0.5 * (e.max_o - e.min_o).maxCoeff());
   }
   char line1[128], line2[128];
   std::snprintf(line1, sizeof(line1), "t=%.2f s  %s/%s  target %s", it.t, toString(it.phase),

@@ -32,6 +32,7 @@ void GraspOptions::check() const {
   arm.check();
   const std::string o = "GraspOptions.";
   check(finiteIn(pregrasp_distance_m, 0.01, 1), o + "pregrasp_distance_m", "must be in [0.01, 1]");
+  check(finiteIn(pregrasp_clearance_m, 0, 1), o + "pregrasp_clearance_m", "must be in [0, 1]");
   check(finiteIn(approach_arm_tolerance_rad, 1e-4, 1), o + "approach_arm_tolerance_rad",
         "must be in (0, 1]");
   check(finiteIn(arm_ready_speed_fraction, 0.01, 1), o + "arm_ready_speed_fraction",
@@ -84,20 +85,20 @@ const char* toString(GraspSubStep s) {
 }
 
 GraspController::GraspController(robot::Robot& robot, TargetEstimator& estimator, const Pose& oMg,
-                                 const Eigen::Vector3d& object_centre_o,
-                                 const GraspOptions& options)
+                                 const ObjectExtent& object_o, const GraspOptions& options)
     : robot_(robot),
       est_(estimator),
       oMg_(oMg),
-      centre_o_(object_centre_o),
+      centre_o_(object_o.centre()),
       opt_(options),
       plan_(robot.model(), robot.camera().rig().left, options.search),
       head_task_(robot.model().head, options.head),
       base_task_(options.base),
       arm_task_(robot.model().arm, options.arm) {
   opt_.check();
-  if (!oMg.isFinite() || !object_centre_o.allFinite())
-    throw std::invalid_argument("GraspController: oMg and object_centre_o must be finite");
+  if (!oMg.isFinite() || !object_o.min_o.allFinite() || !object_o.max_o.allFinite())
+    throw std::invalid_argument("GraspController: oMg and the object's extent must be finite");
+  pregrasp_m_ = std::max(opt_.pregrasp_distance_m, object_o.depthBehind(oMg) + opt_.pregrasp_clearance_m);
 }
 
 GraspController::~GraspController() = default;
@@ -348,7 +349,7 @@ void GraspController::decideApproach(Seconds t, GraspIteration* it) {
   }
   if (!targetUsable(t, it)) return;
   const Pose wMg = *wMo_ * oMg_;
-  const Pose wMed = wMg * along(-opt_.pregrasp_distance_m);
+  const Pose wMed = wMg * along(-pregrasp_m_);
   BaseGoal g = baseGoalFor(arm_task_.kinematics(), wMed, goal_ ? goal_->reach.q : Eigen::VectorXd());
   if (g.reach.ok) {
     unreachable_since_.reset();
@@ -398,7 +399,7 @@ void GraspController::decideAlign(Seconds t, GraspIteration* it) {
   if (!targetUsable(t, it)) return;
   const Pose wMb_now = wMb();
   const Pose wMg = *wMo_ * oMg_;
-  const Pose bMed = wMb_now.inverse() * wMg * along(-opt_.pregrasp_distance_m);
+  const Pose bMed = wMb_now.inverse() * wMg * along(-pregrasp_m_);
   const ArmCommand c = arm_task_.compute(robot_.state().arm_q_rad, bMed);
   robot_.arm().setJointVelocity(c.qdot_radps);
   robot_.base().setVelocity(c.base_v_mps, c.base_w_radps);
@@ -428,7 +429,7 @@ void GraspController::decideGrasp(Seconds t, GraspIteration* it) {
     const Pose wMb_now = wMb();
     const Pose wMg = *wMo_ * oMg_;
     // e* slides from the pre-grasp pose to g along z_g: a straight line at grasp_speed_mps.
-    const double d = std::max(0.0, opt_.pregrasp_distance_m - opt_.grasp_speed_mps * (t - step_started_));
+    const double d = std::max(0.0, pregrasp_m_ - opt_.grasp_speed_mps * (t - step_started_));
     const Pose bMed = wMb_now.inverse() * wMg * along(-d);
     const ArmCommand c = arm_task_.compute(s.arm_q_rad, bMed);
     robot_.arm().setJointVelocity(c.qdot_radps);

@@ -11,7 +11,7 @@
 //             onto the approach line, then the Pioneer-style servo; servo/servo_tasks.h), the
 //             head pointing at the target, the arm moving to its reaching configuration
 //                                                          converged | lost | unreachable | timeout
-//   align     PBVS of the gripper to the pre-grasp pose e* = g Trans(0, 0, -pregrasp_distance_m)
+//   align     PBVS of the gripper to the pre-grasp pose e* = g Trans(0, 0, -pregraspDistance())
 //             (arm joints + base; all six components)     converged | lost | timeout
 //   grasp     straight-line final approach along z_e (the PBVS following e* sliding to g at
 //             grasp_speed_mps), close, check holding, lift, check still holding
@@ -56,7 +56,11 @@ struct GraspOptions {
   BaseApproachOptions base;
   ArmAlignOptions arm;
 
-  double pregrasp_distance_m = 0.12;      ///< e* in front of the grasp frame, along -z_g
+  /// e* in front of the grasp frame along -z_g: at least pregrasp_distance_m, and at least
+  /// pregrasp_clearance_m outside the object's extent (a grasp frame deep inside a large object:
+  /// the fingers start clear of its face whatever its size).
+  double pregrasp_distance_m = 0.12;
+  double pregrasp_clearance_m = 0.05;
   double approach_arm_tolerance_rad = 0.05;    ///< arm joints at the reaching configuration
   double arm_ready_speed_fraction = 0.6;  ///< of each joint's limit, moving to that configuration
   double align_position_tolerance_m = 0.003;
@@ -148,11 +152,13 @@ struct GraspReport {
 class GraspController {
  public:
   /// \param robot an active robot; \param estimator the target's estimator (outlives this);
-  /// \param oMg the grasp frame in the object frame; \param object_centre_o the point the head
-  /// keeps centred (object frame, e.g. the pattern's centre).
-  /// Throws std::invalid_argument for bad options.
+  /// \param oMg the grasp frame in the object frame; \param object_o the object's extent
+  /// (objectExtent): the head keeps its centre in view, and the pre-grasp pose stands
+  /// pregrasp_clearance_m outside it. Throws std::invalid_argument for bad options.
   GraspController(robot::Robot& robot, TargetEstimator& estimator, const Pose& oMg,
-                  const Eigen::Vector3d& object_centre_o, const GraspOptions& options = {});
+                  const ObjectExtent& object_o, const GraspOptions& options = {});
+  /// e* before the grasp frame along -z_g (m): the options' distance or the clearance rule.
+  double pregraspDistance() const { return pregrasp_m_; }
   ~GraspController();
 
   /// One control period at time t (period dt). Never throws.
@@ -195,6 +201,7 @@ class GraspController {
   Pose oMg_;
   Eigen::Vector3d centre_o_;
   GraspOptions opt_;
+  double pregrasp_m_ = 0;
   SearchPlan plan_;
   HeadPointingTask head_task_;
   BaseApproachTask base_task_;

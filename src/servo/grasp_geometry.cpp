@@ -3,8 +3,50 @@
 #include <Eigen/Dense>
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <stdexcept>
 
 namespace refgrasp::servo {
+
+ObjectExtent objectExtent(const detector::ObjectModel& object) {
+  constexpr double kInf = std::numeric_limits<double>::infinity();
+  ObjectExtent e;
+  e.min_o.setConstant(kInf);
+  e.max_o.setConstant(-kInf);
+  const auto add = [&e](const Eigen::Vector3d& X) {
+    e.min_o = e.min_o.cwiseMin(X);
+    e.max_o = e.max_o.cwiseMax(X);
+  };
+  if (object.isMultiView()) {
+    for (const detector::ObjectView& v : object.views) {
+      if (!v.model) continue;
+      const ObjectExtent ve = objectExtent(*v.model);
+      for (int k = 0; k < 8; ++k)  // the view's box corners, moved into this object's frame
+        add(v.oMv * Eigen::Vector3d(k & 1 ? ve.max_o.x() : ve.min_o.x(), k & 2 ? ve.max_o.y() : ve.min_o.y(),
+                                    k & 4 ? ve.max_o.z() : ve.min_o.z()));
+    }
+  } else if (object.cylinder) {
+    const CylinderLabel& c = *object.cylinder;
+    add(Eigen::Vector3d(-c.radius_m, -0.5 * c.height_m, 0));
+    add(Eigen::Vector3d(c.radius_m, 0.5 * c.height_m, 2 * c.radius_m));
+  } else if (object.target) {
+    for (const Eigen::Vector3d& X : object.target->corners_o) add(X);
+  }
+  if (!(e.min_o.array() <= e.max_o.array()).all())
+    throw std::invalid_argument("objectExtent: object '" + object.name + "' has no metric geometry (2D only)");
+  return e;
+}
+
+double ObjectExtent::depthBehind(const Pose& oMg) const {
+  const Eigen::Vector3d p = oMg.t, d = -oMg.R.col(2);  // the line p + s d, s >= 0, out of the object
+  if (((p - min_o).array() < 0).any() || ((max_o - p).array() < 0).any()) return 0;
+  double s = std::numeric_limits<double>::infinity();
+  for (int i = 0; i < 3; ++i) {
+    if (d[i] > 1e-12) s = std::min(s, (max_o[i] - p[i]) / d[i]);
+    if (d[i] < -1e-12) s = std::min(s, (min_o[i] - p[i]) / d[i]);
+  }
+  return std::isfinite(s) ? s : 0;
+}
 
 double jointMargin(const robot::ArmModel& arm, const Eigen::VectorXd& q) {
   double m = 1.0;

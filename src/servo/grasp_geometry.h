@@ -10,6 +10,7 @@
 #include <Eigen/Core>
 
 #include "core/pose.h"
+#include "detector/object.h"
 #include "robot/kinematics.h"
 
 namespace refgrasp::servo {
@@ -61,6 +62,23 @@ struct ApproachPoints {
 };
 ApproachPoints approachPoints(const Pose& wMb, const Pose& wMg, double lookahead_m,
                               double waypoint_m);
+
+/// The space an object occupies as its definition tells it: the axis-aligned box, in the object
+/// frame (metres), around a planar object's pattern quadrilateral (flat: z from 0 to 0), a
+/// cylinder's solid (the label's height along y, x within the radius, z from 0 to the diameter:
+/// the label lies on the side of a solid cylinder, whatever part of the round it covers), or the
+/// union of a several-view object's views moved by their oMv (a box defined by its faces: the box).
+struct ObjectExtent {
+  Eigen::Vector3d min_o = Eigen::Vector3d::Zero(), max_o = Eigen::Vector3d::Zero();
+  /// The point the head keeps centred: the box's centre (a cylinder's axis at the label's
+  /// centre height, a box's centre, a plane's pattern centre).
+  Eigen::Vector3d centre() const { return 0.5 * (min_o + max_o); }
+  /// Distance from the origin of oMg back along -z_g (the approach axis, out of the object) to
+  /// where that line leaves the box; 0 when the origin is outside it.
+  double depthBehind(const Pose& oMg) const;
+};
+/// Throws std::invalid_argument for an object without metric geometry (2D only), naming it.
+ObjectExtent objectExtent(const detector::ObjectModel& object);
 
 /// Smallest distance of q to a joint limit as a fraction of that joint's range (0 at a limit).
 double jointMargin(const robot::ArmModel& arm, const Eigen::VectorXd& q);

@@ -27,7 +27,7 @@ struct Target {
   sim::Scenario scenario;
   int index = -1;  ///< in scenario.world.objects
   detector::ObjectModel object;
-  Eigen::Vector3d centre_o = Eigen::Vector3d::Zero();  ///< pattern centre, object frame
+  servo::ObjectExtent extent_o;  ///< the object's extent, object frame
   const sim::SimObject& world() const { return scenario.world.objects[static_cast<size_t>(index)]; }
 };
 
@@ -38,7 +38,7 @@ inline Target loadTarget(const std::string& scenario_path, std::optional<uint64_
   for (size_t i = 0; i < t.scenario.world.objects.size(); ++i)
     if (t.scenario.world.objects[i].is_target) t.index = static_cast<int>(i);
   t.object = detector::loadObjectDefinition(t.world().definition);
-  for (const auto& c : t.object.target->corners_o) t.centre_o += 0.25 * c;
+  t.extent_o = servo::objectExtent(t.object);
   return t;
 }
 
@@ -86,7 +86,7 @@ inline GraspRun runGrasp(const Target& target, servo::TargetEstimator& estimator
     run.error = "could not activate the simulated enon";
     return run;
   }
-  servo::GraspController ctl(*robot, estimator, target.world().oMg, target.centre_o, options);
+  servo::GraspController ctl(*robot, estimator, target.world().oMg, target.extent_o, options);
   const double dt = model.control_period_s;
   std::vector<bool> left_start(static_cast<size_t>(model.arm.dof()), false);
   double t = 0;

@@ -237,7 +237,7 @@ TEST(GraspController, RobotErrorsAndExceptionsStopTheRobot) {
     ASSERT_EQ(robot.configure(), ReturnType::kOk);
     ASSERT_EQ(robot.activate(), ReturnType::kOk);
     servo::OracleEstimator oracle(target.object);
-    servo::GraspController ctl(robot, oracle, target.world().oMg, target.centre_o);
+    servo::GraspController ctl(robot, oracle, target.world().oMg, target.extent_o);
     const double dt = model.control_period_s;
     servo::GraspStep s;
     double t = 0;
@@ -264,6 +264,43 @@ TEST(GraspController, RobotErrorsAndExceptionsStopTheRobot) {
   }
 }
 
+// The object's extent from each definition form (what the head centres and the pre-grasp
+// clearance is measured from): a plane's pattern, a cylinder's solid, a box of five faces.
+TEST(GraspController, TheObjectExtentOfEachDefinitionForm) {
+  const Target plane = loadTarget(scenarioPath("table_single"));
+  const auto& q = plane.object.target->corners_o;
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_NEAR(plane.extent_o.min_o[i], std::min({q[0][i], q[1][i], q[2][i], q[3][i]}), 1e-12);
+    EXPECT_NEAR(plane.extent_o.max_o[i], std::max({q[0][i], q[1][i], q[2][i], q[3][i]}), 1e-12);
+  }
+  EXPECT_NEAR(plane.extent_o.depthBehind(plane.world().oMg), 0.0, 1e-12);  // behind the pattern: outside
+
+  const Target can = loadTarget(scenarioPath("can_table"));  // r 0.033, label 0.115 high
+  EXPECT_LT((can.extent_o.min_o - Eigen::Vector3d(-0.033, -0.0575, 0)).norm(), 1e-9);
+  EXPECT_LT((can.extent_o.max_o - Eigen::Vector3d(0.033, 0.0575, 0.066)).norm(), 1e-9);
+  EXPECT_LT((can.extent_o.centre() - Eigen::Vector3d(0, 0, 0.033)).norm(), 1e-9);  // on the axis
+  EXPECT_NEAR(can.extent_o.depthBehind(can.world().oMg), 0.033, 1e-9);  // axis to label surface
+
+  // 0.1744 x 0.12 x 0.16 m, its frame the front face's; grasped from the back (z_g = -z_o),
+  // 4 cm inside it.
+  const Target box = loadTarget(scenarioPath("box_cookie_turned"));
+  EXPECT_LT((box.extent_o.min_o - Eigen::Vector3d(-0.0872, -0.06, 0)).norm(), 1e-4);
+  EXPECT_LT((box.extent_o.max_o - Eigen::Vector3d(0.0872, 0.06, 0.16)).norm(), 1e-4);
+  EXPECT_NEAR(box.extent_o.depthBehind(box.world().oMg), 0.04, 1e-4);
+  const robot::EnonModel model = robot::loadEnonModel(refgrasp::testing::kSourceDir + "/config/enon.yaml");
+  auto robot = sim::makeSimRobot(model, box.scenario);
+  servo::OracleEstimator oracle(box.object);
+  servo::GraspOptions o;
+  o.pregrasp_clearance_m = 0.1;
+  EXPECT_NEAR(servo::GraspController(*robot, oracle, box.world().oMg, box.extent_o, o).pregraspDistance(), 0.14, 1e-4);
+  o.pregrasp_clearance_m = 0.02;  // the options' distance when it is the larger
+  EXPECT_NEAR(servo::GraspController(*robot, oracle, box.world().oMg, box.extent_o, o).pregraspDistance(), 0.12, 1e-12);
+
+  detector::ObjectModel flat2d;
+  flat2d.name = "flat2d";
+  EXPECT_THROW(servo::objectExtent(flat2d), std::invalid_argument);
+}
+
 // Bad options are refused at construction, one line naming the field.
 TEST(GraspController, BadOptionsThrowNamingTheField) {
   const Target target = loadTarget(scenarioPath("table_single"));
@@ -272,7 +309,7 @@ TEST(GraspController, BadOptionsThrowNamingTheField) {
   servo::OracleEstimator oracle(target.object);
   const auto expectThrow = [&](servo::GraspOptions o, const std::string& field) {
     try {
-      servo::GraspController c(*robot, oracle, target.world().oMg, target.centre_o, o);
+      servo::GraspController c(*robot, oracle, target.world().oMg, target.extent_o, o);
       ADD_FAILURE() << "accepted bad " << field;
     } catch (const std::invalid_argument& e) {
       EXPECT_NE(std::string(e.what()).find(field), std::string::npos) << e.what();
@@ -281,6 +318,9 @@ TEST(GraspController, BadOptionsThrowNamingTheField) {
   servo::GraspOptions o;
   o.pregrasp_distance_m = -1;
   expectThrow(o, "GraspOptions.pregrasp_distance_m");
+  o = {};
+  o.pregrasp_clearance_m = -0.01;
+  expectThrow(o, "GraspOptions.pregrasp_clearance_m");
   o = {};
   o.frame_period_s = std::nan("");
   expectThrow(o, "GraspOptions.frame_period_s");
@@ -335,7 +375,7 @@ TEST(GraspController, CameraErrorsAndUnusableFramesStopTheRobot) {
     ASSERT_EQ(robot.activate(), ReturnType::kOk);
     detector::Detector det;
     servo::VisionEstimator vision(det, det.addObject(target.object));
-    servo::GraspController ctl(robot, vision, target.world().oMg, target.centre_o);
+    servo::GraspController ctl(robot, vision, target.world().oMg, target.extent_o);
     const double dt = model.control_period_s;
     servo::GraspStep s;
     double t = 0;
