@@ -153,14 +153,6 @@ class KltTracker : public FrameTracker {
   }
 
  private:
-  /// The spacing of seeded features (px) on a seeding region of `area_px` pixels:
-  /// feature_min_distance_px, closer on a region smaller than 12 spacings square (down to 3 px),
-  /// so that a small target (a can 30 px wide) holds as many features as the tracker needs.
-  double seedSpacingPx(double area_px) const {
-    return std::clamp(std::sqrt(area_px) / 12, std::min(3.0, opt_.feature_min_distance_px),
-                      opt_.feature_min_distance_px);
-  }
-
   /// Features (goodFeaturesToTrack) inside the projected textured surfaces facing the camera,
   /// shrunk by the border, at least feature_min_distance_px from `keep`; their points on the
   /// surfaces by pose cMo.
@@ -169,13 +161,20 @@ class KltTracker : public FrameTracker {
             std::vector<Eigen::Vector3d>* normals, std::vector<std::shared_ptr<const SeenIn>>* seen,
             const std::vector<cv::Point2f>& keep = {}, int wanted = -1) const {
     cv::Mat mask = surfaces_.mask(cMo, cam, opt_.pattern_border_px, opt_.seed_min_facing_cos);
-    const double spacing = seedSpacingPx(cv::countNonZero(mask));
-    const int r = static_cast<int>(std::ceil(spacing));
+    const int r = static_cast<int>(std::ceil(opt_.feature_min_distance_px));
     for (const cv::Point2f& k : keep) cv::circle(mask, k, r, cv::Scalar(0), cv::FILLED);
     std::vector<cv::Point2f> found;
     const int n = wanted < 0 ? opt_.max_features : wanted;
     if (n <= 0 || cv::countNonZero(mask) == 0) return;
-    cv::goodFeaturesToTrack(gray, found, n, opt_.feature_quality, spacing, mask, 7, false, 0.04);
+    cv::goodFeaturesToTrack(gray, found, n, opt_.feature_quality, opt_.feature_min_distance_px, mask, 7,
+                            false, 0.04);
+    // A small target (a can 30 px wide) holds too few features at that spacing for the tracker
+    // to start or go on: seed it again, 3 px apart.
+    const double close_px = std::min(3.0, opt_.feature_min_distance_px);
+    if (static_cast<int>(found.size() + keep.size()) < opt_.min_features && close_px < opt_.feature_min_distance_px) {
+      found.clear();
+      cv::goodFeaturesToTrack(gray, found, n, opt_.feature_quality, close_px, mask, 7, false, 0.04);
+    }
     if (found.empty()) return;
     const std::shared_ptr<const SeenIn> frame =
         align_ ? nullptr : std::make_shared<const SeenIn>(SeenIn{gray.clone(), cMo});

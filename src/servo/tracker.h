@@ -105,8 +105,8 @@ struct TrackerOptions {
   /// seen at grazing angles is compressed into a few pixels and its features slide.
   double seed_min_facing_cos = 0.26;
   double feature_quality = 0.01;        ///< goodFeaturesToTrack quality level
-  /// Spacing of seeded features; on a seeding region smaller than 12 spacings square they are
-  /// seeded closer (down to 3 px), so that a small target still holds min_features.
+  /// Spacing of seeded features; where that leaves fewer than min_features (a small target),
+  /// they are seeded 3 px apart.
   double feature_min_distance_px = 8;
   int klt_window_px = 15;               ///< odd, >= 5
   /// 0..6. Few: the features start at the predicted positions, and at coarse levels a window
