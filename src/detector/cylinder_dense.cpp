@@ -74,15 +74,22 @@ SceneLevel sceneLevel(const cv::Mat& scene, const cv::Rect& box, double sigma) {
   return s;
 }
 
+// The smoothed scene's value and gradient where sample q projects at cMo; false when it is behind
+// the camera or off the level.
+bool sceneAt(const Sample& q, const SceneLevel& s, const Intrinsics& cam, const Pose& cMo, double* v, double* dx,
+             double* dy) {
+  const Eigen::Vector3d Xc = cMo * q.X;
+  if (!(Xc.z() > 1e-6)) return false;
+  const Eigen::Vector2d p = cam.project(Xc);
+  return sampleImage(s.I, s.gx, s.gy, p.x() - s.origin.x, p.y() - s.origin.y, v, dx, dy);
+}
+
 // Label (*t) and scene (*i) values of the samples in view at cMo.
 void valuesAt(const std::vector<Sample>& samples, const SceneLevel& s, const Intrinsics& cam, const Pose& cMo,
               std::vector<double>* t, std::vector<double>* i) {
   for (const Sample& q : samples) {
-    const Eigen::Vector3d Xc = cMo * q.X;
-    if (!(Xc.z() > 1e-6)) continue;
-    const Eigen::Vector2d p = cam.project(Xc);
     double v, dx, dy;
-    if (!sampleImage(s.I, s.gx, s.gy, p.x() - s.origin.x, p.y() - s.origin.y, &v, &dx, &dy)) continue;
+    if (!sceneAt(q, s, cam, cMo, &v, &dx, &dy)) continue;
     t->push_back(q.T);
     i->push_back(v);
   }
@@ -195,11 +202,8 @@ CylinderDenseResult refineCylinderPoseDense(const CylinderLabel& L, const std::v
       r.clear();
       rows.clear();
       for (const Sample& q : samples) {
-        const Eigen::Vector3d Xc = cMo * q.X;
-        if (!(Xc.z() > 1e-6)) continue;
-        const Eigen::Vector2d p = cam.project(Xc);
         double v, dx, dy;
-        if (!sampleImage(s.I, s.gx, s.gy, p.x() - s.origin.x, p.y() - s.origin.y, &v, &dx, &dy)) continue;
+        if (!sceneAt(q, s, cam, cMo, &v, &dx, &dy)) continue;
         Eigen::Matrix<double, 2, 6> Jp;
         reprojectionResidual(cMo, q.X, Eigen::Vector2d::Zero(), K, nullptr, &Jp);
         Eigen::Matrix<double, 8, 1> row;

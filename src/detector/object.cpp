@@ -148,12 +148,7 @@ ObjectModel cylinderObject(const std::string& name, const cv::Mat& label_gray, d
                            const std::string& source) {
   const std::string where = source.empty() ? "object '" + name + "'" : source;
   if (label_gray.empty()) throw ConfigError(where, "reference_image", "empty image");
-  CylinderLabel label;
-  label.radius_m = radius_m;
-  label.width_m = label_width_m;
-  label.height_m = label_height_m;
-  label.image_width = label_gray.cols;
-  label.image_height = label_gray.rows;
+  const CylinderLabel label{radius_m, label_width_m, label_height_m, label_gray.cols, label_gray.rows};
   label.check(where);
   // The flat label seen square-on from z_ref: f = W z / w across, H z / h down (a label's pixels
   // need not be square on the surface).

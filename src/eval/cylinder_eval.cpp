@@ -17,13 +17,7 @@ namespace {
 constexpr double kPi = 3.14159265358979323846;
 
 CylinderLabel geometry(const LabelledCylinder& c) {
-  CylinderLabel g;
-  g.radius_m = c.radius_m;
-  g.width_m = c.label_width_m;
-  g.height_m = c.label_height_m;
-  g.image_width = c.label.cols;
-  g.image_height = c.label.rows;
-  return g;
+  return {c.radius_m, c.label_width_m, c.label_height_m, c.label.cols, c.label.rows};
 }
 
 Pose translation(const Eigen::Vector3d& t) { return Pose(Eigen::Matrix3d::Identity(), t); }

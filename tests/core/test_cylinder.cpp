@@ -12,13 +12,7 @@ namespace refgrasp {
 namespace {
 
 CylinderLabel label(double r, double w, double h, int W, int H) {
-  CylinderLabel l;
-  l.radius_m = r;
-  l.width_m = w;
-  l.height_m = h;
-  l.image_width = W;
-  l.image_height = H;
-  return l;
+  return {r, w, h, W, H};
 }
 
 TEST(CylinderLabel, PointsFollowTheDefinitionsFormula) {

@@ -120,7 +120,7 @@ TEST(MakeReferenceViews, PhotographedFacesJoinedMapTheirTexturePointsToTheBoxFra
     ASSERT_NE(view, nullptr) << kSimOrder[i];
     const sim::TexturedPlane& face = sim[i];
     const int W = face.texture.cols, H = face.texture.rows;
-    for (const Eigen::Vector2d uv : {Eigen::Vector2d(10, 12), Eigen::Vector2d(W - 8, H / 2.0), Eigen::Vector2d(W / 3.0, H - 6)}) {
+    for (const Eigen::Vector2d& uv : {Eigen::Vector2d(10, 12), Eigen::Vector2d(W - 8, H / 2.0), Eigen::Vector2d(W / 3.0, H - 6)}) {
       const Eigen::Vector3d X_p((uv.x() - (W - 1) / 2.0) * face.width_m / W, (uv.y() - (H - 1) / 2.0) * face.height_m / H, 0);
       const Eigen::Vector2d px = cam.project(it->second.plane.cMp * X_p);
       const std::optional<Eigen::Vector3d> X_v = view->model->target->backProject(cam.undistortPixel(px));

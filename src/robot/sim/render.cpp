@@ -356,12 +356,7 @@ int maxLevelOf(const cv::Mat& tex, bool mipmap) {
 class CylinderDrawer {
  public:
   CylinderDrawer(const TexturedCylinder& c, const Eigen::Matrix3d& K, const RenderOptions& opt)
-      : c_(c), opt_(opt), K_(K), Kinv_(K.inverse()), oMc_(c.cMo.inverse()) {
-    label_.radius_m = c.radius_m;
-    label_.width_m = c.label_width_m;
-    label_.height_m = c.label_height_m;
-    label_.image_width = c.label.cols;
-    label_.image_height = c.label.rows;
+      : c_(c), opt_(opt), K_(K), Kinv_(K.inverse()), oMc_(c.cMo.inverse()), label_(c.geometry()) {
     f_ = std::sqrt(K(0, 0) * K(1, 1));
   }
 

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "core/camera.h"
+#include "core/cylinder.h"
 #include "core/pose.h"
 
 namespace refgrasp::sim {
@@ -37,6 +38,9 @@ struct TexturedCylinder {
   cv::Mat cap_texture;
   int side_gray = 200, cap_gray = 170;
   Pose cMo;  ///< object frame in the camera frame (metres, radians)
+
+  /// The label's geometry on this cylinder (core/cylinder.h).
+  CylinderLabel geometry() const { return {radius_m, label_width_m, label_height_m, label.cols, label.rows}; }
 };
 
 struct RenderOptions {

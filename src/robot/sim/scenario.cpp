@@ -168,7 +168,7 @@ TexturedCylinder readCylinder(Reader& r, const YAML::Node& node, const std::stri
   c.label = r.texture(node, where, "label");
   if (node["side_texture"]) c.side_texture = r.texture(node, where, "side_texture");
   if (node["cap_texture"]) c.cap_texture = r.texture(node, where, "cap_texture");
-  const CylinderLabel label{c.radius_m, c.label_width_m, c.label_height_m, c.label.cols, c.label.rows};
+  const CylinderLabel label = c.geometry();
   try {
     label.check(r.file().path());
   } catch (const ConfigError& e) {

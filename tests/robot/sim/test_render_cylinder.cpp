@@ -46,12 +46,7 @@ TEST(RenderCylinder, LabelPointsLandWhereThePoseProjectsThem) {
                    Pose::fromRotationVector(Eigen::Vector3d(0, 0.52, 0), Eigen::Vector3d::Zero()) *
                    Pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0, 0, -0.04));
   const cv::Mat img = renderView(cam, {}, {can(label, cMo)}, cv::Mat(), {});
-  CylinderLabel geom;
-  geom.radius_m = 0.04;
-  geom.width_m = 2 * M_PI * 0.04;
-  geom.height_m = 0.1;
-  geom.image_width = 640;
-  geom.image_height = 200;
+  const CylinderLabel geom{0.04, 2 * M_PI * 0.04, 0.1, 640, 200};
   double sum = 0;
   int n = 0;
   for (int v = 10; v < 190; v += 7)
