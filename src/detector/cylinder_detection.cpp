@@ -332,9 +332,11 @@ bool sampleComparison(const RegisteredObject& obj, const VisibleLabel& part, con
                                            static_cast<int>(std::min(1e6, std::ceil(hi.y()))) + pad + 1)) &
                         cv::Rect(0, 0, scene.cols, scene.rows);
   if (crop.area() <= 0) return false;
+  // A new image when smoothed: img is the caller's scene or the registered label pyramid.
   auto lowpass = [](const cv::Mat& img, double step) {
-    cv::Mat out = img;
-    if (step > 1.2) cv::GaussianBlur(img, out, cv::Size(0, 0), 0.45 * step);
+    if (!(step > 1.2)) return img;
+    cv::Mat out;
+    cv::GaussianBlur(img, out, cv::Size(0, 0), 0.45 * step);
     return out;
   };
   const cv::Mat sc = lowpass(scene(crop), scene_step),

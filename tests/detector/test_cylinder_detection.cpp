@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <random>
 #include <sstream>
 
@@ -148,6 +149,34 @@ TEST(CylinderDetection, AFullWrapLabelIsFoundAcrossItsSeam) {
       EXPECT_GT(top, 0.7 * silhouette);
       EXPECT_LT(top, 1.05 * silhouette);
     }
+  }
+}
+
+TEST(CylinderDetection, DetectionLeavesTheFrameAndTheReferenceAsTheyWere) {
+  // The verification smooths the scene and the label where a far can is compared at a coarse
+  // resolution: into images of its own. The caller's frame goes on to the tracker and other
+  // detectors; the label is compared again on the next frame.
+  const Intrinsics cam = testing::sceneCamera();
+  const LabelledCylinder can = testCans()[0];
+  Detector det;
+  const int id = det.addObject(can.object());
+  CylinderViewSpec s;
+  s.distance_m = 1.0;  // far enough that the comparison is coarser than the frame
+  s.turn_rad = 0.6;
+  s.seed = 11;
+  const eval::CylinderView v = eval::renderCylinderView(cam, &can, s);
+  const cv::Mat before = v.image.clone();
+  std::optional<Detection> first;
+  for (int k = 0; k < 3; ++k) {
+    const DetectionResult r = det.detect(v.image, cam);
+    ASSERT_TRUE(r.ok) << r.error;
+    const std::optional<Detection> d = r.find(id);
+    ASSERT_TRUE(d && d->cMo) << "pass " << k;
+    EXPECT_EQ(cv::norm(v.image, before, cv::NORM_INF), 0) << "pass " << k << " changed the frame";
+    if (!first) first = d;
+    EXPECT_EQ(d->cMo->t, first->cMo->t) << "pass " << k;
+    EXPECT_EQ(d->cMo->R, first->cMo->R) << "pass " << k;
+    EXPECT_EQ(d->correlation, first->correlation) << "pass " << k;
   }
 }
 
