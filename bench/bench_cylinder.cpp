@@ -29,7 +29,8 @@ void usage() {
       "way round and partial), 0.3-1.5 m, turned about their axis (partial labels up to 80 deg, full\n"
       "ones any way), tilted up to 20 deg, over photo clutter and the media backdrops, degraded (noise,\n"
       "motion blur, JPEG). Methods: the cylinder model, the planar approximation (--pose paper), the\n"
-      "classic pipeline. Success: pose within 2 deg and 2 %% of the distance.\n"
+      "cylinder model without its view-synthesised features (match.cylinder_views: false, the\n"
+      "ablation), the classic pipeline. Success: pose within 2 deg and 2 %% of the distance.\n"
       "Usage: bench_cylinder [--views N per label (default 60)] [--seed S (default 1)]\n"
       "                      [--labels eval|test|all (default eval)] [--clutter N (default 40)] [--no-classic]\n"
       "                      [--threads N] [--help]\n"
@@ -125,6 +126,8 @@ int main(int argc, char** argv) try {
   }
   DetectorOptions paper_opt = opt;
   paper_opt.pose = PoseMethod::kPaper;
+  DetectorOptions flat_opt = opt;  // the ablation: the label's own features only
+  flat_opt.match.cylinder_views = false;
 
   // Labels: (photo, radius, label height, fraction of the circumference).
   struct LabelSpec {
@@ -143,7 +146,8 @@ int main(int argc, char** argv) try {
   const std::vector<std::string> backdrops = {
       "", "backgrounds/wall.png", "backgrounds/table_wood.png", "backgrounds/floor.png", "clutter/clutter_02.png", ""};
   const Intrinsics cam = testing::sceneCamera();
-  std::vector<std::string> methods = {"cylinder model", "planar approximation (--pose paper)"};
+  std::vector<std::string> methods = {"cylinder model", "planar approximation (--pose paper)",
+                                      "cylinder model without view-synthesised features"};
   if (classic) methods.push_back("classic (flat label)");
   std::map<std::string, Bin> by_distance, by_turn, by_label, all;
   std::vector<std::string> label_rows;
@@ -162,9 +166,10 @@ int main(int argc, char** argv) try {
   std::mt19937_64 rng(seed);
   for (const LabelSpec& ls : specs) {
     const eval::LabelledCylinder can = eval::labelledCylinder(ls.photo, ls.radius_m, ls.height_m, ls.wrap);
-    Detector det(opt), paper(paper_opt);
+    Detector det(opt), paper(paper_opt), flat(flat_opt);
     const int id = det.addObject(can.object());
     paper.addObject(can.object());
+    flat.addObject(can.object());
     const eval::ClassicPipeline cl(can.object());
     const bool full = ls.wrap >= 0.99;
     char label_key[160];
@@ -189,7 +194,8 @@ int main(int argc, char** argv) try {
       if (!v.counted()) continue;
       ++counted_views;
       std::vector<eval::CylinderPoseError> e = {eval::cylinderPoseError(r.find(id), v.cMo),
-                                                eval::cylinderPoseError(rp.find(0), v.cMo)};
+                                                eval::cylinderPoseError(rp.find(0), v.cMo),
+                                                eval::cylinderPoseError(flat.detect(v.image, cam).find(0), v.cMo)};
       if (classic) {
         const eval::ClassicResult c = cl.detect(v.image, cam);
         e.push_back(eval::cylinderPoseError(c.found ? c.cMo : std::nullopt, v.cMo));

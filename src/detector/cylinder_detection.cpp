@@ -8,6 +8,7 @@
 
 #include "core/geometry.h"
 #include "detector/cylinder_dense.h"
+#include "detector/cylinder_views.h"
 #include "detector/homography.h"
 #include "detector/sanity.h"
 
@@ -479,29 +480,45 @@ void registerCylinder(RegisteredObject* obj, const DetectorOptions& opt) {
   const int W = L.image_width;
   Features& lf = obj->label_features;
   lf.image_size = obj->model.reference.size();
-  std::vector<int> keep;
-  const Features& main = obj->index.features;
-  for (int i = 0; i < main.size(); ++i) {
-    const double u = main.keypoints[static_cast<size_t>(i)].pt.x;
-    if (!L.fullWrap() || (u >= W / 4.0 && u < 3 * W / 4.0)) keep.push_back(i);
+  const Features flat = obj->index.features;
+  for (int i = 0; i < flat.size(); ++i) {
+    const double u = flat.keypoints[static_cast<size_t>(i)].pt.x;
+    if (!L.fullWrap() || (u >= W / 4.0 && u < 3 * W / 4.0)) {
+      lf.keypoints.push_back(flat.keypoints[static_cast<size_t>(i)]);
+      lf.descriptors.push_back(flat.descriptors.row(i));
+    }
   }
-  for (const int i : keep) {
-    lf.keypoints.push_back(main.keypoints[static_cast<size_t>(i)]);
-    lf.descriptors.push_back(main.descriptors.row(i));
-  }
+  // The label's features as it looks turned away and from further (cylinder_views.h) join both
+  // indices; the cap grows with them, so that they add to the label's own rather than replace them.
+  const Features views = opt.match.cylinder_views
+                             ? synthesisedLabelFeatures(L, obj->model.reference, flat, obj->index.polygon_px, opt.sift)
+                             : Features{};
+  MatchOptions mo = opt.match;
+  mo.max_reference_features += views.size();
+  auto joined = [](Features a, const Features& b) {
+    a.keypoints.insert(a.keypoints.end(), b.keypoints.begin(), b.keypoints.end());
+    if (!b.descriptors.empty()) a.descriptors.push_back(b.descriptors);
+    return a;
+  };
+  if (views.size() > 0) obj->index = buildReferenceIndex(joined(flat, views), obj->index.polygon_px, mo);
   if (!L.fullWrap() || W < 4) return;
   const int s = W / 2;
   cv::Mat rolled;
   cv::hconcat(obj->model.reference.colRange(s, W), obj->model.reference.colRange(0, s), rolled);
-  obj->seam_index = buildReferenceIndex(extractSift(rolled, opt.sift), {}, opt.match);
-  const Features& seam = obj->seam_index->features;
-  for (int i = 0; i < seam.size(); ++i) {
-    cv::KeyPoint k = seam.keypoints[static_cast<size_t>(i)];
+  const Features seam_flat = extractSift(rolled, opt.sift);
+  Features rolled_views = views;
+  for (cv::KeyPoint& k : rolled_views.keypoints) {
+    k.pt.x -= static_cast<float>(s);
+    if (k.pt.x < -0.5f) k.pt.x += static_cast<float>(W);
+  }
+  obj->seam_index = buildReferenceIndex(joined(seam_flat, rolled_views), {}, mo);
+  for (int i = 0; i < seam_flat.size(); ++i) {
+    cv::KeyPoint k = seam_flat.keypoints[static_cast<size_t>(i)];
     if (!(k.pt.x >= W / 4.0 && k.pt.x < 3 * W / 4.0)) continue;
     k.pt.x += static_cast<float>(s);
     if (k.pt.x > W - 0.5f) k.pt.x -= static_cast<float>(W);
     lf.keypoints.push_back(k);
-    lf.descriptors.push_back(seam.descriptors.row(i));
+    lf.descriptors.push_back(seam_flat.descriptors.row(i));
   }
 }
 

@@ -59,6 +59,9 @@ struct MatchOptions {
   /// at 0.1 %). Over a small pattern the perspective is below ~2 px at f = 500 px, and a few
   /// matches leave it poorly determined (corners several px off). 0: always the full homography.
   double affine_below_px = 64;
+  /// Cylinder objects (cylinder model): the label's features also as the label looks turned away
+  /// and from further off, view-synthesised (detector/cylinder_views.h), in both of its indices.
+  bool cylinder_views = true;
   uint64_t seed = 0;
   /// Throws std::invalid_argument on nonsense.
   void check() const;

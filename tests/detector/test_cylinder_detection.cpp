@@ -10,6 +10,7 @@
 #include <sstream>
 
 #include "detector/cylinder_dense.h"
+#include "detector/cylinder_views.h"
 #include "detector/cylinder_detection.h"
 #include "detector/detector.h"
 #include "detector/registered_object.h"
@@ -364,6 +365,66 @@ TEST(CylinderDetection, ALensWithDistortionIsHonoured) {
                             << 100 * e.translation_fraction << " %";
   }
   EXPECT_EQ(within, views);
+}
+
+// Scene features of a can turned away and far whose descriptor-nearest label feature (of `ref`,
+// at `uv` label px) is the same point: within 2 px of where the true pose projects it.
+int samePointMatches(const Features& scene, const Features& ref, const std::vector<Eigen::Vector2d>& uv,
+                     const CylinderLabel& L, const Pose& cMo, const Intrinsics& cam) {
+  int n = 0;
+  for (int i = 0; i < scene.size(); ++i) {
+    double best = 1e30;
+    int bj = -1;
+    for (int j = 0; j < ref.size(); ++j) {
+      const double d = cv::norm(scene.descriptors.row(i), ref.descriptors.row(j), cv::NORM_L2);
+      if (d < best) best = d, bj = j;
+    }
+    if (bj < 0 || best > 300 || !L.facesCamera(uv[bj].x(), uv[bj].y(), cMo)) continue;
+    const cv::Point2f p = scene.keypoints[static_cast<size_t>(i)].pt;
+    n += (cam.project(cMo * L.point(uv[bj])) - Eigen::Vector2d(p.x, p.y)).norm() < 2;
+  }
+  return n;
+}
+
+TEST(CylinderViews, SynthesisedFeaturesAreTheLabelsPointsSeenTurnedAwayAndFar) {
+  // The label as a camera sees it wrapped on the can, turned and from further off: its features
+  // must land, mapped back to label px, on the points they show (a wrong turn, scale or wrap
+  // would match nothing), and supply the matches the flat label lacks there.
+  const Intrinsics cam = testing::sceneCamera();
+  const LabelledCylinder can = testCans()[0];  // all the way round
+  const CylinderLabel L = *can.object().cylinder;
+  const Features flat = extractSift(can.label, SiftOptions{});
+  const Features views = synthesisedLabelFeatures(L, can.label, flat, {}, SiftOptions{});
+  ASSERT_GT(views.size(), flat.size()) << "flat " << flat.size();
+  std::vector<Eigen::Vector2d> flat_uv, views_uv;
+  for (const cv::KeyPoint& k : flat.keypoints) flat_uv.emplace_back(k.pt.x, k.pt.y);
+  for (const cv::KeyPoint& k : views.keypoints) {
+    EXPECT_TRUE(k.pt.x >= -0.5f && k.pt.x < L.image_width - 0.5f && k.pt.y >= -0.5f && k.pt.y < L.image_height)
+        << k.pt.x << ", " << k.pt.y;
+    views_uv.emplace_back(k.pt.x, k.pt.y);
+  }
+  Features joined = flat;  // as the detector's index holds them
+  joined.keypoints.insert(joined.keypoints.end(), views.keypoints.begin(), views.keypoints.end());
+  joined.descriptors.push_back(views.descriptors);
+  std::vector<Eigen::Vector2d> joined_uv = flat_uv;
+  joined_uv.insert(joined_uv.end(), views_uv.begin(), views_uv.end());
+  int flat_total = 0, joined_total = 0;
+  for (const double turn : {-2.4, -0.9, 0.8, 2.0}) {
+    CylinderViewSpec s;
+    s.distance_m = 0.9;
+    s.turn_rad = turn;
+    s.backdrop = "backgrounds/wall.png";
+    s.seed = 21;
+    const eval::CylinderView v = eval::renderCylinderView(cam, &can, s);
+    const Features scene = extractSift(v.image, SiftOptions{});
+    const int nf = samePointMatches(scene, flat, flat_uv, L, v.cMo, cam);
+    const int nj = samePointMatches(scene, joined, joined_uv, L, v.cMo, cam);
+    flat_total += nf;
+    joined_total += nj;
+    std::printf("turned %.1f rad: %d same-point matches with the synthesised features, %d without\n", turn, nj, nf);
+    EXPECT_GT(nj, nf) << "turned " << turn << " rad";
+  }
+  EXPECT_GE(joined_total, 1.4 * flat_total) << joined_total << " with the synthesised features vs " << flat_total;
 }
 
 }  // namespace
