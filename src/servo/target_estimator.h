@@ -4,8 +4,10 @@
 //   VisionEstimator (servo/vision_estimator.h)  the robot's vision on the images;
 //   OracleEstimator (here)                      the simulator's ground truth carried by the frame
 //                                               (frame.truth), with visibility decided
-//                                               geometrically from the pattern's projection:
-//                                               the same controller without the price of vision.
+//                                               geometrically from the pattern's projection (a
+//                                               cylinder's label: the part of it the camera sees
+//                                               on the surface): the same controller without the
+//                                               price of vision.
 // The controller only moves the robot on a CONFIRMED target.
 //
 // Frames: cMo = object frame in the LEFT camera frame at the frame's capture (exposure centre);
@@ -20,6 +22,7 @@
 #include <Eigen/Core>
 
 #include "core/camera.h"
+#include "core/cylinder.h"
 #include "core/pose.h"
 #include "detector/object.h"
 #include "robot/camera.h"
@@ -59,21 +62,57 @@ class TargetEstimator {
 };
 
 struct OracleOptions {
-  double border_px = 4;          ///< every pattern corner at least this far inside the image
+  /// A plane: every pattern corner at least this far inside the image; a cylinder's label: the
+  /// label points counted as seen.
+  double border_px = 4;
   /// Shortest projected pattern side: smaller is too far to see. A little below the size at
   /// which single-frame SIFT detection of the shipped textures starts to fail: the oracle is
-  /// slightly more generous than vision, never less.
+  /// slightly more generous than vision, never less. A cylinder's label is judged by the part
+  /// of it the camera sees (visibleLabel), which is narrow (at most the diameter) and partly
+  /// foreshortened: it is visible when that part covers at least min_side_px^2 (the smallest
+  /// planar pattern's area) and neither of its extents is under min_side_px / 2 (a sliver holds
+  /// no descriptor's window): vision finds cans whose seen part is under 32 px wide
+  /// (docs/results.md, "Worlds beyond the plane").
   double min_side_px = 32;
-  double max_view_angle_rad = 1.2;  ///< between the pattern's normal and the line of sight
+  /// Between the pattern's normal and the line of sight (a cylinder: at each label point).
+  double max_view_angle_rad = 1.2;
   void check() const;
 };
+
+/// What a camera sees of a label wrapped on a cylinder: the label points that face it (cos of
+/// the angle between the outward normal and the ray to the camera > min_facing_cos), lie in
+/// front of it and project at least border_px inside its image. On a convex surface a point that
+/// faces the camera is not hidden by the surface itself (other objects are not considered).
+struct VisibleLabel {
+  int points = 0;         ///< label samples seen
+  /// Extent of the seen points' projections across the image of the cylinder's axis and along
+  /// it (px); 0 when no point is seen.
+  double width_px = 0, height_px = 0;
+  double area_px2 = 0;    ///< area of the seen points' projections' convex hull (px^2)
+  /// TL, TR, BR, BL: the seen label columns and rows (their range, label px) projected; the
+  /// seen points' bounding box when a corner of that range lies behind the camera.
+  std::array<Eigen::Vector2d, 4> corners{};
+};
+
+/// Label points (label px) that stand for a pattern region (label px, the object's
+/// pattern_polygon_px) in visibleLabel(): column centres about 1 deg of arc apart, 48 rows from
+/// the region's top to its bottom in each column.
+std::vector<Eigen::Vector2d> labelSamples(const CylinderLabel& label,
+                                          const std::vector<Eigen::Vector2d>& region_px);
+
+/// The seen part of a label (samples from labelSamples) at cMo (label's object frame in the
+/// camera frame; distorted px).
+VisibleLabel visibleLabel(const CylinderLabel& label, const std::vector<Eigen::Vector2d>& samples_px,
+                          const Pose& cMo, const Intrinsics& camera, double border_px,
+                          double min_facing_cos);
 
 /// Ground truth as an estimator. Confirmed at once when visible (no confirmation delay: the
 /// truth does not need one); lost when not visible or when the frame carries no truth for it.
 class OracleEstimator : public TargetEstimator {
  public:
-  /// \param object the target's definition (its pattern corners; several views: the view seen
-  /// most squarely counts); its name must match the frame's truth entries. Throws
+  /// \param object the target's definition (its pattern corners; a cylinder: its label's
+  /// pattern region on the surface; several views: the planar view seen most squarely, or any
+  /// cylinder view); its name must match the frame's truth entries. Throws
   /// std::invalid_argument for a 2D-only object or bad options.
   OracleEstimator(const detector::ObjectModel& object, const OracleOptions& options = {});
   TargetObservation observe(const robot::StereoFrame& frame, const StereoRig& rig,
@@ -86,8 +125,17 @@ class OracleEstimator : public TargetEstimator {
                std::array<Eigen::Vector2d, 4>* corners = nullptr) const;
 
  private:
+  struct Label {
+    CylinderLabel label;
+    Pose oMv;                                ///< label's frame in the object frame
+    std::vector<Eigen::Vector2d> samples_px;  ///< labelSamples of its pattern region
+  };
+  void add(const detector::ObjectModel& model, const Pose& oMv);
+  bool planeVisible(const Pose& cMo, const Intrinsics& cam, std::array<Eigen::Vector2d, 4>* corners) const;
+
   std::string name_;
-  std::vector<std::array<Eigen::Vector3d, 4>> quads_o_;  ///< patternQuads (one per view)
+  std::vector<std::array<Eigen::Vector3d, 4>> quads_o_;  ///< the planar views' pattern quads
+  std::vector<Label> labels_;                            ///< the cylinder views' labels
   OracleOptions opt_;
 };
 
