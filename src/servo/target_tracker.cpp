@@ -111,6 +111,10 @@ struct TargetTracker::Impl {
     int frames_since_pose = 1 << 20; ///< 0: the previous frame had a pose
     int frames_since_detection = 1 << 20;
     std::optional<Pose> velocity;    ///< pose change over the last frame (camera frame)
+    /// The last periodic re-detection that disagreed with the confirmed track; how many in a row
+    /// did, and how many of them in a row agreed with each other.
+    std::optional<Pose> disputed;
+    int disputes = 0, disputed_agree = 0;
     bool anyActive() const { return active[0] || active[1]; }
     void stop() { active[0] = active[1] = false; }
   };
@@ -361,13 +365,33 @@ struct TargetTracker::Impl {
       const detector::ObjectModel& model = det.object(id);
       const bool detected = d.eyes != detector::EyesUsed::kNone &&
                             (d.lMo.has_value() || !model.hasPose());
-      if (detected) {
+      // A confirmed, tracked target is detected only when its periodic re-detection is due. One
+      // that agrees restarts the tracker. One that disagrees is not believed alone (a close-up
+      // partly hidden by the gripper, a look-alike): the track goes on and the next frames are
+      // detected too; confirm_detections + 1 of them in a row agreeing with each other replace
+      // the track (it had drifted): one more than a new target needs, since the track is evidence
+      // too. After kMaxDisputes in a row without that, a full period passes.
+      constexpr int kMaxDisputes = 5;
+      bool overruled = false, settled = false;
+      if (detected && tr && t.confirmed && d.lMo && !agrees(*d.lMo, *tr)) {
+        t.disputed_agree = t.disputed && agrees(*d.lMo, *t.disputed) ? t.disputed_agree + 1 : 1;
+        t.disputed = d.lMo;
+        settled = t.disputed_agree >= opt.confirm_detections + 1;
+        if (!settled) {
+          overruled = true;
+          const bool again = ++t.disputes < kMaxDisputes;
+          t.frames_since_detection = again ? opt.redetect_every_frames - 2 : -1;
+          if (!again) t.disputed.reset(), t.disputes = t.disputed_agree = 0;
+        }
+      }
+      if (!overruled) t.disputed.reset(), t.disputes = t.disputed_agree = 0;
+      if (detected && !overruled) {
         // Agreement with the previous pose brought to this frame: tracked, or predicted (by the
         // camera motion, or by the last motion, or unmoved: a sudden stop is no disagreement).
-        bool agree = false;
-        if (d.lMo && tr) {
+        bool agree = settled;
+        if (!settled && d.lMo && tr) {
           agree = agrees(*d.lMo, *tr);
-        } else if (d.lMo && t.last_cMo && t.frames_since_pose <= opt.prior_frames) {
+        } else if (!settled && d.lMo && t.last_cMo && t.frames_since_pose <= opt.prior_frames) {
           const std::optional<Pose>& p = pred[static_cast<size_t>(id)];
           const bool camera_motion_known = t.last_capture.bMc && capture.bMc;
           agree = (p && agrees(*d.lMo, *p)) || (!camera_motion_known && agrees(*d.lMo, *t.last_cMo));

@@ -60,7 +60,9 @@ struct TargetTrackerOptions {
   double prior_roi_margin = 0.5;    ///< detector::ObjectPrior::roi_margin of a re-detection
   double prior_scale_margin = 2.0;  ///< detector::ObjectPrior::scale_margin of a re-detection
   /// > 0: a tracked target is also detected in its predicted region every N frames and, when the
-  /// detection agrees, the tracker restarts from it (bounds drift). 0: never.
+  /// detection agrees, the tracker restarts from it (bounds drift). A confirmed track that a
+  /// detection disagrees with goes on, the next frames are detected too, and confirm_detections
+  /// + 1 of them in a row that agree with each other replace it. 0: never.
   int redetect_every_frames = 0;
   /// Without camera motion in the frames: predict the next pose by the last frame-to-frame motion.
   bool constant_velocity = true;

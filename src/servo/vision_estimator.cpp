@@ -4,6 +4,12 @@
 
 namespace refgrasp::servo {
 
+TargetTrackerOptions robotPipelineOptions() {
+  TargetTrackerOptions o;
+  o.redetect_every_frames = 10;
+  return o;
+}
+
 VisionEstimator::VisionEstimator(const detector::Detector& detector, int object,
                                  const TargetTrackerOptions& options)
     : object_(object), tracker_(detector, options) {

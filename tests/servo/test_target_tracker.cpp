@@ -368,6 +368,65 @@ TEST(TargetTracker, ConfirmationRejectsASingleWrongDetection) {
   }
 }
 
+// A tracker that drifts: from frame 3 on it reports the true pose of each frame moved 10 cm
+// sideways (5-25 % of the orbit's distance), so that a re-detection disagrees with it.
+class DriftingTracker : public servo::FrameTracker {
+ public:
+  explicit DriftingTracker(const rt::TrackingSequence& seq) : seq_(seq) {}
+  servo::TrackStep start(const cv::Mat&, const Intrinsics&, const Pose&) override { return step(); }
+  servo::TrackStep track(const cv::Mat&, const Intrinsics&, const std::optional<Pose>&) override { return step(); }
+  size_t frame_ = 0;  // the sequence frame being processed (set by the test)
+
+ private:
+  servo::TrackStep step() const {
+    servo::TrackStep s;
+    s.ok = true;
+    s.cMo = seq_.truth[frame_];
+    if (frame_ >= 3) s.cMo.t.x() += 0.10;
+    s.quality.features = 50;
+    return s;
+  }
+  const rt::TrackingSequence& seq_;
+};
+
+// Periodic re-detection of a confirmed, tracked target (redetect_every_frames): detections against
+// the track are not believed alone (the track goes on, still confirmed, and the next frames are
+// detected too); three in a row that agree with each other (confirm_detections + 1) replace the
+// drifted track, still confirmed.
+TEST(TargetTracker, RedetectionsReplaceATrackOnlyWhenThreeInARowAgree) {
+  const auto& seq = orbitStart();
+  DriftingTracker* fake = nullptr;
+  servo::TrackerFactory factory = [&](const detector::ObjectModel&) {
+    auto t = std::make_unique<DriftingTracker>(seq);
+    fake = t.get();
+    return t;
+  };
+  servo::TargetTrackerOptions o;
+  o.redetect_every_frames = 4;
+  servo::TargetTracker pipeline(targetDetector(), o, factory);
+  std::vector<servo::TargetFrame> frames;
+  std::string confirmed;
+  for (size_t k = 0; k < seq.mono.size(); ++k) {
+    fake->frame_ = k;
+    frames.push_back(pipeline.process(seq.mono[k], seq.camera));
+    confirmed += frames.back().objects[0].confirmed ? '1' : '0';
+  }
+  const std::string modes = modeString(frames);
+  SCOPED_TRACE(rt::formatted("modes %s confirmed %s", modes.c_str(), confirmed.c_str()));
+  // Detected and confirmed on frames 0-1; tracked; the re-detection due at 5 disagrees with the
+  // drifted track: tracked on; detected again at 6 and 7, agreeing with 5: 7 replaces the track.
+  EXPECT_EQ(modes.substr(0, 8), "DDTTTTTD");
+  EXPECT_EQ(confirmed.substr(1), std::string(seq.mono.size() - 1, '1'));
+  const auto& replaced = frames[7].objects[0];
+  ASSERT_TRUE(replaced.cMo);
+  EXPECT_LT(translationError(*replaced.cMo, seq.truth[7]), 0.02) << "the detection, not the drifted track";
+  for (size_t k : {5, 6}) {
+    const auto& overruled = frames[k].objects[0];
+    ASSERT_TRUE(overruled.cMo);
+    EXPECT_NEAR(translationError(*overruled.cMo, seq.truth[k]), 0.10, 1e-9) << k << ": the track, not the detections";
+  }
+}
+
 // Both eyes: the fused pose is at least as accurate as the left eye's alone.
 TEST(TargetTracker, StereoIsAtLeastAsAccurateAsMono) {
   rt::TrackingSequenceSpec spec;
