@@ -298,6 +298,32 @@ struct TargetTracker::Impl {
     return f.lMo;
   }
 
+  // A confirmed, tracked target is detected only when its periodic re-detection is due. One that
+  // agrees restarts the tracker. One that disagrees is not believed alone (a close-up partly
+  // hidden by the gripper, a look-alike): the track goes on and the next frames are detected too;
+  // confirm_detections + 1 of them in a row agreeing with each other replace the track (it had
+  // drifted): one more than a new target needs, since the track is evidence too. After
+  // kMaxDisputes in a row without that, a full period passes. True when the track overrules the
+  // detection lMo; *settled when the detections replace the track.
+  bool overrules(Target* t, const Pose& tracked, const std::optional<Pose>& lMo, bool* settled) const {
+    constexpr int kMaxDisputes = 5;
+    *settled = false;
+    bool overruled = false;
+    if (t->confirmed && lMo && !agrees(*lMo, tracked)) {
+      t->disputed_agree = t->disputed && agrees(*lMo, *t->disputed) ? t->disputed_agree + 1 : 1;
+      t->disputed = lMo;
+      *settled = t->disputed_agree >= opt.confirm_detections + 1;
+      if (!*settled) {
+        overruled = true;
+        const bool again = ++t->disputes < kMaxDisputes;
+        t->frames_since_detection = again ? opt.redetect_every_frames - 2 : -1;
+        if (!again) t->disputed.reset(), t->disputes = t->disputed_agree = 0;
+      }
+    }
+    if (!overruled) t->disputed.reset(), t->disputes = t->disputed_agree = 0;
+    return overruled;
+  }
+
   TargetFrame run(const std::vector<Eye>& eyes, const FrameStamp& stamp,
                   const robot::CaptureState& capture, const std::vector<robot::ObjectTruth>&) {
     TargetFrame r = begin(stamp, capture);
@@ -365,26 +391,11 @@ struct TargetTracker::Impl {
       const detector::ObjectModel& model = det.object(id);
       const bool detected = d.eyes != detector::EyesUsed::kNone &&
                             (d.lMo.has_value() || !model.hasPose());
-      // A confirmed, tracked target is detected only when its periodic re-detection is due. One
-      // that agrees restarts the tracker. One that disagrees is not believed alone (a close-up
-      // partly hidden by the gripper, a look-alike): the track goes on and the next frames are
-      // detected too; confirm_detections + 1 of them in a row agreeing with each other replace
-      // the track (it had drifted): one more than a new target needs, since the track is evidence
-      // too. After kMaxDisputes in a row without that, a full period passes.
-      constexpr int kMaxDisputes = 5;
-      bool overruled = false, settled = false;
-      if (detected && tr && t.confirmed && d.lMo && !agrees(*d.lMo, *tr)) {
-        t.disputed_agree = t.disputed && agrees(*d.lMo, *t.disputed) ? t.disputed_agree + 1 : 1;
-        t.disputed = d.lMo;
-        settled = t.disputed_agree >= opt.confirm_detections + 1;
-        if (!settled) {
-          overruled = true;
-          const bool again = ++t.disputes < kMaxDisputes;
-          t.frames_since_detection = again ? opt.redetect_every_frames - 2 : -1;
-          if (!again) t.disputed.reset(), t.disputes = t.disputed_agree = 0;
-        }
-      }
-      if (!overruled) t.disputed.reset(), t.disputes = t.disputed_agree = 0;
+      bool settled = false, overruled = false;
+      if (detected && tr)
+        overruled = overrules(&t, *tr, d.lMo, &settled);
+      else
+        t.disputed.reset(), t.disputes = t.disputed_agree = 0;
       if (detected && !overruled) {
         // Agreement with the previous pose brought to this frame: tracked, or predicted (by the
         // camera motion, or by the last motion, or unmoved: a sudden stop is no disagreement).
