@@ -68,6 +68,12 @@ WORLDS = [
          distractors=[("tin", 0.30)],
          text="a 4.5 cm bottle with a 16 cm fruit photograph as its label 2.3 m away, 15 deg to the "
               "right, its label's centre turned 50 deg from the robot, a tin beside it, 5 % frame drops"),
+    dict(name="can_hotel_wide", kind="cylinder", photo="hotel_facade", radius=0.05, height=0.13,
+         label_height=0.10, distance=1.8, bearing=-10, turn=30, seed=31, noise=2.0, faults="none",
+         distractors=[("parcel", 0.34)],
+         text="a 5 cm can (the widest radius named) 13 cm tall with a hotel photograph as its label "
+              "1.8 m away, 10 deg to the right, turned 30 deg, a parcel beside it: grasped 6.5 cm above "
+              "the table, which the arm rising from where it hangs must clear"),
     dict(name="box_cookie_turned", kind="box", size=(0.1744, 0.12, 0.16),
          faces=dict(front="cookie_box", back="hotel_facade", left="aerial_town", right="butterfly",
                     top="fruits"),

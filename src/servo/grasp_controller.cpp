@@ -35,6 +35,8 @@ void GraspOptions::check() const {
   check(finiteIn(pregrasp_clearance_m, 0, 1), o + "pregrasp_clearance_m", "must be in [0, 1]");
   check(finiteIn(approach_arm_tolerance_rad, 1e-4, 1), o + "approach_arm_tolerance_rad",
         "must be in (0, 1]");
+  check(finiteIn(arm_ready_distance_m, 0, 10), o + "arm_ready_distance_m", "must be in [0, 10]");
+  check(finiteIn(arm_ready_tolerance_rad, 1e-4, 3.2), o + "arm_ready_tolerance_rad", "must be in [1e-4, 3.2]");
   check(finiteIn(arm_ready_speed_fraction, 0.01, 1), o + "arm_ready_speed_fraction",
         "must be in (0, 1]");
   check(finiteIn(align_position_tolerance_m, 1e-5, 0.1), o + "align_position_tolerance_m",
@@ -367,9 +369,8 @@ void GraspController::decideApproach(Seconds t, GraspIteration* it) {
     }
   }
   const Pose wMb_now = wMb();
-  const BaseCommand b = base_task_.approach(wMb_now, goal_->wMb);
+  BaseCommand b = base_task_.approach(wMb_now, goal_->wMb);
   detail_ = toString(b.stage);
-  robot_.base().setVelocity(b.v_mps, b.w_radps);
   // The arm goes to its reaching configuration meanwhile (joint space, capped speed).
   const robot::RobotState& s = robot_.state();
   const robot::ArmModel& arm = robot_.model().arm;
@@ -382,6 +383,13 @@ void GraspController::decideApproach(Seconds t, GraspIteration* it) {
     worst = std::max(worst, std::abs(err));
   }
   robot_.arm().setJointVelocity(qdot);
+  // Near the goal the base waits (turning only) for the arm.
+  if (worst > opt_.arm_ready_tolerance_rad && b.v_mps > 0 &&
+      (goal_->wMb.t - wMb_now.t).head<2>().norm() < opt_.arm_ready_distance_m) {
+    b.v_mps = 0;
+    detail_ = "arm_ready";
+  }
+  robot_.base().setVelocity(b.v_mps, b.w_radps);
   pointHead(wMb_now, b.v_mps, b.w_radps);
   it->error_position_m = b.points.position_error_m;
   it->error_rotation_rad = std::abs(b.points.heading_error_rad);

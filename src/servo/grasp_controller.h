@@ -63,6 +63,11 @@ struct GraspOptions {
   double pregrasp_clearance_m = 0.05;
   double approach_arm_tolerance_rad = 0.05;    ///< arm joints at the reaching configuration
   double arm_ready_speed_fraction = 0.6;  ///< of each joint's limit, moving to that configuration
+  /// The base comes no closer than this to its approach goal (m) until the arm is within
+  /// arm_ready_tolerance_rad of its reaching configuration: an arm still rising from where it
+  /// hangs sweeps its open fingers through the table's edge if the base is already there.
+  double arm_ready_distance_m = 0.4;
+  double arm_ready_tolerance_rad = 0.15;
   double align_position_tolerance_m = 0.003;
   double align_rotation_tolerance_rad = 0.015;
   double grasp_speed_mps = 0.1;           ///< final approach along z_e
