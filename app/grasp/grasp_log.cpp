@@ -6,6 +6,7 @@
 
 #include "core/error.h"
 #include "detector/draw.h"
+#include "detector/sanity.h"
 #include "robot/files/frame_json.h"
 
 namespace refgrasp::grasp_app {
@@ -35,6 +36,33 @@ Json vec(const Eigen::VectorXd& v) {
 
 Json optionalPose(const std::optional<Pose>& p) { return p ? poseJson(*p) : Json(nullptr); }
 
+// What the detector saw of the target in this frame (left eye), when it ran: formats.md
+// "control.jsonl".
+Json detectorJson(const servo::TargetObservation& o) {
+  if (!o.detector_stats) return Json(nullptr);
+  const detector::ObjectStats& st = *o.detector_stats;
+  const detector::MatchRejects& r = st.rejected;
+  Json j = {{"scene_features", st.scene_features},
+            {"global_matches", st.global_matches},
+            {"hypotheses", st.hypotheses_evaluated},
+            {"candidates", st.candidates},
+            {"rejected", {{"too_few_local_matches", r.too_few_local_matches},
+                          {"too_few_inliers", r.too_few_inliers},
+                          {"not_significant", r.not_significant},
+                          {"implausible_homography", r.implausible_homography},
+                          {"narrow_inlier_spread", r.narrow_inlier_spread}}},
+            {"miss", detector::missReasonName(st.miss)},
+            {"sanity", detector::sanityStatusName(st.sanity)}};
+  if (o.detector_best && o.detector_best->found) {
+    const detector::Detection& d = *o.detector_best;
+    j["found"] = {{"inliers", d.inliers}, {"log10_nfa", d.log10_nfa}, {"correlation", d.correlation},
+                  {"pose_rms_px", d.pose_rms_px}};
+  } else {
+    j["found"] = nullptr;
+  }
+  return j;
+}
+
 }  // namespace
 
 Json GraspLog::line(const servo::GraspIteration& it, const std::string& target,
@@ -60,6 +88,7 @@ Json GraspLog::line(const servo::GraspIteration& it, const std::string& target,
     j["cMo_error"] = {{"position_m", translationError(*it.observation.cMo, *truth)},
                       {"rotation_rad", rotationError(*it.observation.cMo, *truth)}};
   }
+  j["detector"] = it.frame ? detectorJson(it.observation) : Json(nullptr);
   j["wMo"] = optionalPose(it.wMo);
   j["bMe_desired"] = optionalPose(it.bMe_desired);
   j["distance_m"] = it.distance_m;

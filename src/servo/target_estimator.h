@@ -24,6 +24,7 @@
 #include "core/camera.h"
 #include "core/cylinder.h"
 #include "core/pose.h"
+#include "detector/detector.h"
 #include "detector/object.h"
 #include "robot/camera.h"
 
@@ -43,6 +44,10 @@ struct TargetObservation {
   /// Pattern corners TL, TR, BR, BL in the left image (px), when seen.
   std::optional<std::array<Eigen::Vector2d, 4>> corners;
   std::string source;       ///< how it was obtained: "detect", "track", "truth", ...
+  /// Vision, a frame the detector ran on: what it saw and reported (servo::TargetState's
+  /// detector_stats and detector_best), for the log.
+  std::optional<detector::ObjectStats> detector_stats;
+  std::optional<detector::Detection> detector_best;
   /// One line when the frame could not be used (wrong size, no ground truth): the controller
   /// then stops the robot with this error.
   std::string error;

@@ -93,6 +93,7 @@ struct Eye {
 /// Detection of one object in one frame, fused over the eyes (mono: the left only).
 struct EyesDetection {
   detector::Detection eye[2];
+  std::optional<detector::ObjectStats> stats;  ///< the left (or only) eye's
   std::optional<Pose> lMo;
   detector::EyesUsed eyes = detector::EyesUsed::kNone;
 };
@@ -231,6 +232,7 @@ struct TargetTracker::Impl {
         EyesDetection& o = (*out)[static_cast<size_t>(id)];
         o.eye[e].object = id;
         if (const auto hit = d.find(id)) o.eye[e] = *hit;
+        if (e == 0 && static_cast<size_t>(id) < d.stats.size()) o.stats = d.stats[static_cast<size_t>(id)];
       }
     }
     for (int id = 0; id < n; ++id) {
@@ -389,6 +391,8 @@ struct TargetTracker::Impl {
       const EyesDetection& d = found[static_cast<size_t>(id)];
       const auto& tr = tracked[static_cast<size_t>(id)];
       const detector::ObjectModel& model = det.object(id);
+      s.detector_stats = d.stats;
+      if (d.eye[0].found) s.detector_best = d.eye[0];
       const bool detected = d.eyes != detector::EyesUsed::kNone &&
                             (d.lMo.has_value() || !model.hasPose());
       bool settled = false, overruled = false;

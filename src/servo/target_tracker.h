@@ -91,6 +91,11 @@ struct TargetState {
   TrackQuality quality;        ///< mode track: the (left or only) tracking eye's numbers
   TrackQuality quality_right;  ///< stereo, mode track: the right eye's
   SearchScope searched = SearchScope::kNone;  ///< the detection run for it this frame
+  /// When the detector ran for it this frame: what it saw in the left (or only) eye (features,
+  /// matches, candidates, the furthest stage a hypothesis reached and why it stopped there), and
+  /// the instance it reported there, even one the pipeline then overruled or did not confirm.
+  std::optional<detector::ObjectStats> detector_stats;
+  std::optional<detector::Detection> detector_best;
   std::string lost_reason;  ///< the tracker's, on the frame it lost the target
 };
 

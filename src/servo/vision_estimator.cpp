@@ -29,6 +29,10 @@ TargetObservation VisionEstimator::observe(const robot::StereoFrame& frame, cons
     return o;
   }
   const TargetState* s = last_.find(object_);
+  if (s) {
+    o.detector_stats = s->detector_stats;
+    o.detector_best = s->detector_best;
+  }
   if (!s || s->mode == TrackMode::kLost || !s->cMo) return o;
   o.status = s->confirmed ? TargetStatus::kConfirmed : TargetStatus::kUnconfirmed;
   o.cMo = s->cMo;

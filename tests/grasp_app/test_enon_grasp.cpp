@@ -98,6 +98,43 @@ TEST(EnonGraspApp, ARunWithoutAGraspExits1) {
   EXPECT_NE(r.err.find("enon_grasp: "), std::string::npos);
 }
 
+// control.jsonl's "detector" (formats.md): on every frame the detector ran on, what it saw of the
+// target and what it reported, so that a look can be explained from the log alone; null on the
+// frames it did not run on (tracked ones) and between frames.
+TEST(EnonGraspApp, TheLogSaysWhatTheDetectorSawOnEveryFrameItRan) {
+  const fs::path dir = scratch("log_detector");
+  const AppRun r =
+      runApp("enon_grasp", "--scenario " + kTableSingle + kEnon + " --log " + dir.string() + " --max-time 3");
+  ASSERT_TRUE(r.status == 0 || r.status == 1) << r.err;
+  const std::vector<json> control = jsonLines(readFile(dir / "control.jsonl"));
+  int ran = 0, found = 0;
+  for (const json& l : control) {
+    ASSERT_TRUE(l.contains("detector")) << l.dump();
+    const json& d = l["detector"];
+    if (l["frame"].is_null()) {
+      EXPECT_TRUE(d.is_null()) << l.dump();
+      continue;
+    }
+    if (l["source"] == "detect") EXPECT_FALSE(d.is_null()) << "a detection without the detector's record: " << l.dump();
+    if (d.is_null()) continue;
+    ++ran;
+    for (const char* k : {"scene_features", "global_matches", "hypotheses", "candidates", "rejected", "miss", "sanity",
+                          "found"})
+      ASSERT_TRUE(d.contains(k)) << k << " in " << d.dump();
+    EXPECT_GT(d["scene_features"].get<int>(), 0);
+    if (!d["found"].is_null()) {
+      ++found;
+      EXPECT_EQ(d["miss"], "none") << d.dump();
+      EXPECT_GE(d["found"]["inliers"].get<int>(), 8) << d.dump();
+      EXPECT_GT(d["found"]["correlation"].get<double>(), 0.5) << d.dump();
+    } else {
+      EXPECT_NE(d["miss"], "none") << "not found, so it says why: " << d.dump();
+    }
+  }
+  EXPECT_GE(ran, 2) << "the search's look and the confirmation at least";
+  EXPECT_GE(found, 2);
+}
+
 // --log DIR: a refgrasp recording of the frames the controller used plus control.jsonl, one
 // line per control iteration; every line obeys the safety rule (no motion on an unconfirmed or
 // lost target); pose_replay reads the recording back, one pose line per frame, with the truth.
