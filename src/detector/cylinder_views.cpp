@@ -41,7 +41,9 @@ void addView(const CylinderLabel& L, const cv::Mat& gray, double turn, double sc
   cv::Mat scaled;  // the label at the view's scale, both axes (area averaging: no aliasing)
   cv::resize(gray, scaled, cv::Size(std::max(1, static_cast<int>(std::lround(L.image_width * scale))), rows), 0, 0,
              cv::INTER_AREA);
+  // The scaled label's own scales (its size is rounded to whole px).
   const double sx = static_cast<double>(scaled.cols) / L.image_width;
+  const double sy = static_cast<double>(rows) / L.image_height;
   const int cols = 2 * half + 1;
   // View column x -> label column u (the view's facing column, x = half, is the label's at turn).
   auto labelColumn = [&](double x) {
@@ -69,8 +71,8 @@ void addView(const CylinderLabel& L, const cv::Mat& gray, double turn, double sc
     if (std::abs(x - half) > max_x || y < 0 || y > rows - 1) continue;
     const double u = labelColumn(x);
     if (!L.fullWrap() && (u < 0 || u > L.image_width - 1)) continue;
-    k.pt = cv::Point2f(static_cast<float>(u), static_cast<float>((y + 0.5) / scale - 0.5));
-    k.size = static_cast<float>(k.size / scale);
+    k.pt = cv::Point2f(static_cast<float>(u), static_cast<float>((y + 0.5) / sy - 0.5));
+    k.size = static_cast<float>(k.size / sy);
     out->keypoints.push_back(k);
     out->descriptors.push_back(f.descriptors.row(i));
   }

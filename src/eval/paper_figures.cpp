@@ -16,6 +16,7 @@
 #include "detector/detector.h"
 #include "detector/detector_internal.h"
 #include "eval/classic.h"
+#include "eval/cylinder_eval.h"
 #include "eval/eval_util.h"
 #include "robot/enon_model.h"
 #include "robot/hal.h"
@@ -209,15 +210,15 @@ PaperObject cylinder(const std::string& name, const std::string& what, const cv:
   o.name = name;
   o.description = what;
   o.shape = PaperShape::kCylinder;
-  const double w = 2 * M_PI * radius_m;
-  o.model = detector::cylinderObject(name, label, radius_m, w, label_h_m);
-  sim::TexturedCylinder c;
+  LabelledCylinder c;  // all the way round
+  c.name = name;
   c.label = label;
   c.radius_m = radius_m;
-  c.label_width_m = w;
+  c.label_width_m = 2 * M_PI * radius_m;
   c.label_height_m = label_h_m;
   c.height_m = height_m;
-  o.cylinder = c;
+  o.model = c.object();
+  o.cylinder = c.body(Pose());
   o.centre_o = Eigen::Vector3d(0, 0, radius_m);
   o.height_m = height_m;
   o.turns_deg = turns;

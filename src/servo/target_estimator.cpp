@@ -68,16 +68,12 @@ VisibleLabel visibleLabel(const CylinderLabel& label, const std::vector<Eigen::V
                           double min_facing_cos) {
   constexpr double kMinDepthM = 0.05;  // as a plane's corners
   VisibleLabel v;
-  const Eigen::Vector3d camera_o = cMo.inverse().t;
   std::vector<Eigen::Vector2d> px;
   Eigen::Vector2d uv_lo = Eigen::Vector2d::Constant(std::numeric_limits<double>::infinity());
   Eigen::Vector2d uv_hi = -uv_lo;
   for (const Eigen::Vector2d& uv : samples_px) {
-    const Eigen::Vector3d X = label.point(uv);
-    const Eigen::Vector3d ray = camera_o - X;
-    const double len = ray.norm();
-    if (!(len > 0) || !(label.normal(uv.x()).dot(ray) / len > min_facing_cos)) continue;
-    const Eigen::Vector3d Xc = cMo * X;
+    if (!label.facesCamera(uv.x(), uv.y(), cMo, min_facing_cos)) continue;
+    const Eigen::Vector3d Xc = cMo * label.point(uv);
     if (!(Xc.z() >= kMinDepthM)) continue;
     const Eigen::Vector2d p = cam.project(Xc);
     if (!p.allFinite() || p.x() < border_px || p.y() < border_px ||
