@@ -44,6 +44,7 @@
 #include "core/types.h"
 #include "robot/hal.h"
 #include "servo/grasp_geometry.h"
+#include "servo/search_map.h"
 #include "servo/search_plan.h"
 #include "servo/servo_tasks.h"
 #include "servo/target_estimator.h"
@@ -132,6 +133,10 @@ struct GraspIteration {
   double error_position_m = -1, error_rotation_rad = -1;  ///< the active task's error (-1 none)
   robot::RobotState state;    ///< as read in this step
   robot::RobotCommand command;  ///< as written in this step (zero when stopped)
+  /// The search's belief after this step (shared, unchanged between looks; null when the run
+  /// has no belief), and the look that started in this step.
+  std::shared_ptr<const SearchBelief> belief;
+  std::optional<SearchLook> look_started;
 };
 
 struct GraspStep {

@@ -1,0 +1,14 @@
+#include "servo/search_map.h"
+
+#include <cmath>
+
+namespace refgrasp::servo {
+
+bool Footprint::contains(const Eigen::Vector2d& p, double margin_m) const {
+  const Eigen::Vector2d d = p - centre;
+  const double c = std::cos(yaw_rad), s = std::sin(yaw_rad);
+  const double x = c * d.x() + s * d.y(), y = -s * d.x() + c * d.y();  // in the footprint's axes
+  return std::abs(x) <= half_m.x() + margin_m && std::abs(y) <= half_m.y() + margin_m;
+}
+
+}  // namespace refgrasp::servo
