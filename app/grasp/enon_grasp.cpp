@@ -20,6 +20,7 @@
 #include "robot/backends.h"
 #include "robot/enon_model.h"
 #include "robot/sources.h"
+#include "grasp/room_map.h"
 #include "robot/sim/scenario.h"
 #include "robot/sim/sim_enon.h"
 #include "tool/tool.h"
@@ -165,7 +166,7 @@ EnonGraspResult runEnonGraspSession(const EnonGraspOptions& o, std::FILE* progre
   }
   const tool::StopOnError stop_on_error([&] { robot->stop(); });  // an exception in the loop
   if (o.interruptible) tool::flagOnSignal();
-  servo::GraspController ctl(*robot, *est, goal.oMg, extent, o.grasp);
+  servo::GraspController ctl(*robot, *est, goal.oMg, extent, withRoom(o.grasp, scenario, extent));
   const double dt = model.control_period_s;
   const double max_time = o.max_time_s > 0 ? o.max_time_s : scenario.max_duration_s;
   const bool realtime = o.backend != "sim";
@@ -262,6 +263,12 @@ int enonGraspMain(int argc, char** argv) {
                  "write a recording of the frames used and control.jsonl (one line per control "
                  "iteration) to this new folder");
   app.add_option("--video", o.video, "write the annotated camera view to this video file");
+  std::string search = "belief";
+  app.add_option("--search", search,
+                 "belief: each look where the belief over the target's place says it pays most,\n"
+                 "over the scenario's tables (docs/grasp.md \"Search\"); sweep: each direction once")
+      ->check(CLI::IsMember({"belief", "sweep"}))
+      ->capture_default_str();
   app.add_option("--max-time", o.max_time_s,
                  "give up after this many seconds (default: the scenario's max_duration_s)")
       ->check(tool::Finite(1e-3, 86400));
@@ -283,6 +290,7 @@ int enonGraspMain(int argc, char** argv) {
           ->check(tool::Integer(0, 232));
   tool::parse(app, argc, argv);
   if (*seed_opt) o.seed = seed;
+  o.grasp.belief_search = search == "belief";
   if (!camera_config.empty()) {
     if (o.camera.empty()) throw std::invalid_argument("--camera-config: only with --camera");
     o.camera_settings["config"] = camera_config;

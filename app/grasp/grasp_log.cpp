@@ -89,6 +89,17 @@ Json GraspLog::line(const servo::GraspIteration& it, const std::string& target,
                       {"rotation_rad", rotationError(*it.observation.cMo, *truth)}};
   }
   j["detector"] = it.frame ? detectorJson(it.observation) : Json(nullptr);
+  if (it.look_started) {
+    const servo::SearchLook& l = *it.look_started;
+    j["look"] = Json{{"index", l.index},
+                     {"camera_xy", {l.camera_w.x(), l.camera_w.y()}},
+                     {"bearing_rad", l.bearing_rad},
+                     {"half_fov_rad", l.half_fov_rad},
+                     {"range_m", l.range_m},
+                     {"expected_gain", l.expected_gain}};
+  } else {
+    j["look"] = nullptr;
+  }
   j["wMo"] = optionalPose(it.wMo);
   j["bMe_desired"] = optionalPose(it.bMe_desired);
   j["distance_m"] = it.distance_m;

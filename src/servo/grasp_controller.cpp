@@ -12,6 +12,13 @@ using robot::ReturnType;
 
 namespace {
 
+bool weakEvidence(const TargetObservation& o) {
+  // A consensus the matcher accepted that a later check refused, or an instance the pipeline
+  // did not confirm: something like the target is there.
+  return o.status == TargetStatus::kLost && o.detector_stats && o.detector_stats->candidates > 0;
+}
+
+
 bool finiteIn(double x, double lo, double hi) { return std::isfinite(x) && x >= lo && x <= hi; }
 
 Pose along(double z_m) { return Pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0, 0, z_m)); }
@@ -27,6 +34,7 @@ std::string at(const char* what, Seconds t) {
 void GraspOptions::check() const {
   using refgrasp::check;
   search.check();
+  belief.check();
   head.check();
   base.check();
   arm.check();
@@ -101,6 +109,7 @@ GraspController::GraspController(robot::Robot& robot, TargetEstimator& estimator
   if (!oMg.isFinite() || !object_o.min_o.allFinite() || !object_o.max_o.allFinite())
     throw std::invalid_argument("GraspController: oMg and the object's extent must be finite");
   pregrasp_m_ = std::max(opt_.pregrasp_distance_m, object_o.depthBehind(oMg) + opt_.pregrasp_clearance_m);
+  if (opt_.belief_search) plan_.useBelief(opt_.room, opt_.belief);
 }
 
 GraspController::~GraspController() = default;
@@ -140,6 +149,7 @@ void GraspController::enter(GraspPhase p, Seconds t, const std::string& outcome,
   PhaseReport& r = report_.phases[toString(phase_)];
   r.time_s += t - phase_start_;
   r.outcome = outcome;
+  const GraspPhase phase_before = phase_;
   phase_ = p;
   phase_start_ = t;
   detail_.clear();
@@ -152,7 +162,14 @@ void GraspController::enter(GraspPhase p, Seconds t, const std::string& outcome,
     // Look first where the head points (it was on the target when it was lost), with the head
     // only: the base stays where it is (next to the table, the arm out), it neither turns nor
     // drives blind.
-    plan_.restart(robot_.state(), /*head_only=*/true);
+    // With a belief and a loss in the approach (the arm not out yet), the search by belief
+    // starts where the target was, the base free to move.
+    const bool from_approach = phase_before == GraspPhase::kApproach && plan_.beliefMode() && wMo_;
+    if (from_approach) {
+      plan_.restart(robot_.state(), false, wMo_->t.head<2>());
+    } else {
+      plan_.restart(robot_.state(), /*head_only=*/true);
+    }
     search_cmd_ = SearchCommand();
     est_.reset();
     wMo_.reset();
@@ -272,6 +289,8 @@ std::string GraspController::observe(Seconds t, bool want, Seconds look_after,
         obs.status = TargetStatus::kLost;  // "seen" without a usable pose is not seen
       it->observed = obs.status;
       it->frame = std::move(*frame);
+      candidate_w_.reset();
+      if (obs.status == TargetStatus::kUnconfirmed) candidate_w_ = (wMc * *obs.cMo).t.head<2>();
       if (obs.status == TargetStatus::kConfirmed) {
         const Pose wMo = wMc * *obs.cMo;
         const double a = opt_.estimate_smoothing;
@@ -328,7 +347,11 @@ void GraspController::pointHead(const Pose& wMb_now, double base_v_mps, double b
 
 void GraspController::decideSearch(Seconds t, GraspIteration* it) {
   const Seconds stamp = it->frame ? it->frame->stamp : -1e300;
-  search_cmd_ = plan_.decide(t, robot_.state(), it->observed, stamp);
+  search_cmd_ = plan_.decide(t, robot_.state(), it->observed, stamp,
+                             it->observed == TargetStatus::kUnconfirmed ? candidate_w_ : std::nullopt,
+                             weakEvidence(it->observation));
+  it->belief = plan_.belief();
+  it->look_started = plan_.takeStartedLook();
   if (search_cmd_.new_look) est_.reset();  // another direction: nothing carried over
   detail_ = toString(search_cmd_.state);
   robot_.head().setPosition(search_cmd_.pan_rad, search_cmd_.tilt_rad);
@@ -338,7 +361,9 @@ void GraspController::decideSearch(Seconds t, GraspIteration* it) {
     stopMotion();
     enter(GraspPhase::kApproach, t, "found", it);
   } else if (search_cmd_.state == SearchState::kNotFound) {
-    finish(false, "not_found", at("target not found", t), t, it);
+    const std::string& why_not = plan_.endReason();
+    const std::string what = "target not found" + (why_not.empty() ? "" : " (" + why_not + ")");
+    finish(false, "not_found", at(what.c_str(), t), t, it);
   } else if (t - phase_start_ > opt_.search_timeout_s) {
     finish(false, "timeout", at("search timed out", t), t, it);
   }

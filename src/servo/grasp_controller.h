@@ -53,6 +53,11 @@ namespace refgrasp::servo {
 
 struct GraspOptions {
   SearchPlanOptions search;
+  /// The search by belief (servo/search_belief.h) over `room` (odometry frame; empty: an unknown
+  /// room); false: the sweep of servo/search_plan.h, each direction once.
+  bool belief_search = true;
+  BeliefSearchOptions belief;
+  RoomMap room;
   HeadPointingOptions head;
   BaseApproachOptions base;
   ArmAlignOptions arm;
@@ -94,7 +99,7 @@ struct GraspOptions {
   /// error, must not end the run); meanwhile the robot holds still (or keeps the last
   /// reachable goal).
   double unreachable_patience_s = 1.0;
-  double search_timeout_s = 60;
+  double search_timeout_s = 120;  ///< a 10 x 10 m room with four tables takes a minute to tour
   double approach_timeout_s = 30;
   double align_timeout_s = 15;
   double grasp_timeout_s = 15;
@@ -231,6 +236,7 @@ class GraspController {
   std::optional<Seconds> lost_since_;
   Seconds next_grab_ = -1e9;        ///< frame-rate limiter (control time)
   SearchCommand search_cmd_;
+  std::optional<Eigen::Vector2d> candidate_w_;  ///< this period's unconfirmed candidate (odometry x, y)
 
   // Phase state.
   std::optional<BaseGoal> goal_;

@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "core/error.h"
+#include "robot/kinematics.h"
 #include "servo/grasp_geometry.h"
 
 namespace refgrasp::servo {
@@ -12,6 +13,9 @@ namespace {
 
 constexpr int kBins = 720;  // half-degree bins of the circle of directions
 constexpr double kMinGainRad = 0.05;  // a look must show at least this much unseen
+// A restart's hint (where a lost target was) outweighs everything else in the belief: the
+// prior spreads over every surface, the hint's cells are a few of them.
+constexpr double kHintBoost = 1000;
 
 int binOf(double bearing) {
   const double a = std::remainder(bearing, 2 * M_PI) + M_PI;  // [0, 2 pi]
@@ -58,6 +62,9 @@ SearchPlan::SearchPlan(const robot::EnonModel& model, const Intrinsics& camera,
     : head_(model.head), opt_(options), seen_(kBins, false), tilt_(options.tilt_rad) {
   opt_.check();
   const double hfov = 2 * std::atan2(0.5 * camera.width, camera.fx);
+  half_fov_ = 0.5 * hfov;
+  camera_ = camera;
+  model_ = model;
   half_ = std::max(0.05, 0.5 * hfov - opt_.edge_margin_rad);
   const double lo = head_.pan.min_rad, hi = head_.pan.max_rad;
   const int n = std::max(1, static_cast<int>(std::ceil((hi - lo) / (2 * half_) - 1e-9)) + 1);
@@ -115,7 +122,8 @@ bool SearchPlan::nextLook(double heading, double pan_now) {
   return any;
 }
 
-void SearchPlan::restart(const robot::RobotState& s, bool head_only) {
+void SearchPlan::restart(const robot::RobotState& s, bool head_only,
+                         const std::optional<Eigen::Vector2d>& hint_w) {
   std::fill(seen_.begin(), seen_.end(), false);
   start_heading_ = planarHeading(s.wMb_odom);
   viewpoint_ = 0;
@@ -124,11 +132,94 @@ void SearchPlan::restart(const robot::RobotState& s, bool head_only) {
   move_dir_ = Eigen::Vector2d::Zero();
   state_ = SearchState::kPointHead;
   tilt_ = head_only ? s.tilt_rad : opt_.tilt_rad;
+  end_reason_.clear();
+  candidate_w_.reset();
+  started_.reset();
+  if (belief_ && !head_only) {
+    belief_->reset(s.wMb_odom);
+    if (hint_w) belief_->candidate(*hint_w, kHintBoost);
+    // Back to a lost target: from the viewpoint the belief picks, not from wherever the base
+    // happens to see it again (where it was lost, at a grazing angle, too close).
+    on_the_way_ = !hint_w;
+    snapshot_ = belief_->snapshot();
+    planNext(s);
+    return;
+  }
+  snapshot_.reset();
   if (head_only) {
     pan_target_ = s.pan_rad;
   } else {
     nextLook(start_heading_, s.pan_rad);
   }
+}
+
+void SearchPlan::useBelief(const RoomMap& map, const BeliefSearchOptions& options) {
+  std::vector<double> line;
+  for (int k = 1; k <= opt_.max_viewpoints; ++k) line.push_back(k * opt_.viewpoint_step_m);
+  belief_ = std::make_shared<BeliefSearch>(model_, camera_, map, options, line);
+}
+
+std::optional<SearchLook> SearchPlan::takeStartedLook() {
+  std::optional<SearchLook> l = std::move(started_);
+  started_.reset();
+  return l;
+}
+
+void SearchPlan::planNext(const robot::RobotState& s) {
+  if (belief_->done()) {
+    state_ = SearchState::kNotFound;
+    end_reason_ = "every place seen well enough";
+    return;
+  }
+  planned_ = belief_->next(s.wMb_odom, s.pan_rad, opt_.drive_speed_mps, opt_.turn_speed_radps);
+  if (!planned_.ok) {
+    state_ = SearchState::kNotFound;
+    end_reason_ = "no look can explain the belief left";
+    return;
+  }
+  pan_target_ = planned_.pan_rad;
+  tilt_ = planned_.tilt_rad;
+  turn_target_ = planned_.heading_rad;
+  waypoint_ = 0;
+  state_ = planned_.path.empty() ? SearchState::kTurnBase : SearchState::kMoveBase;
+}
+
+bool SearchPlan::followPath(const robot::RobotState& s, SearchCommand* c) {
+  const Eigen::Vector2d at = s.wMb_odom.t.head<2>();
+  const double heading = planarHeading(s.wMb_odom);
+  while (waypoint_ < planned_.path.size() && (planned_.path[waypoint_] - at).norm() < 0.05) ++waypoint_;
+  if (waypoint_ >= planned_.path.size()) return true;
+  const Eigen::Vector2d d = planned_.path[waypoint_] - at;
+  const double err = std::remainder(std::atan2(d.y(), d.x()) - heading, 2 * M_PI);
+  c->base_w_radps = std::clamp(2.0 * err, -opt_.turn_speed_radps, opt_.turn_speed_radps);
+  // Turn in place towards the waypoint first: the path is free only along its straight lines.
+  if (std::abs(err) < 0.15) {
+    const bool last = waypoint_ + 1 == planned_.path.size();
+    const double slow = last ? 2.0 * d.norm() : opt_.drive_speed_mps;
+    c->base_v_mps = std::clamp(slow, 0.05, opt_.drive_speed_mps);
+  }
+  return false;
+}
+
+bool SearchPlan::holdOnTheWay(Seconds t, const robot::RobotState& s, TargetStatus observed,
+                              const std::optional<Eigen::Vector2d>& candidate_w) {
+  if (!on_the_way_) return false;
+  if (observed == TargetStatus::kConfirmed) {
+    state_ = SearchState::kFound;
+    return true;
+  }
+  if (observed != TargetStatus::kUnconfirmed) return false;
+  // A candidate: stop (the head too) and look at it as a look does (until confirmed or
+  // confirm_timeout_s).
+  pan_target_ = s.pan_rad;
+  tilt_ = s.tilt_rad;
+  state_ = SearchState::kLook;
+  look_started_ = t;
+  settle_until_ = t;
+  unconfirmed_ = true;
+  candidate_w_ = candidate_w;
+  ++looks_;
+  return true;
 }
 
 void SearchPlan::startTurnOrMove(const robot::RobotState& s) {
@@ -179,7 +270,8 @@ void SearchPlan::startTurnOrMove(const robot::RobotState& s) {
 }
 
 SearchCommand SearchPlan::decide(Seconds t, const robot::RobotState& s, TargetStatus observed,
-                                 Seconds frame_stamp) {
+                                 Seconds frame_stamp,
+                                 const std::optional<Eigen::Vector2d>& candidate_w, bool weak) {
   SearchCommand c;
   const double heading = planarHeading(s.wMb_odom);
   switch (state_) {
@@ -195,8 +287,21 @@ SearchCommand SearchPlan::decide(Seconds t, const robot::RobotState& s, TargetSt
         state_ = SearchState::kLook;
         look_started_ = t;
         unconfirmed_ = false;
+        candidate_w_.reset();
         ++looks_;
         c.new_look = true;
+        if (belief_ && !head_only_) {
+          SearchLook l;
+          l.index = looks_;
+          l.start = t;
+          const Pose wMc = s.wMb_odom * robot::headCameraPose(head_, s.pan_rad, s.tilt_rad);
+          l.camera_w = wMc.t.head<2>();
+          l.bearing_rad = heading + s.pan_rad;
+          l.half_fov_rad = half_fov_;
+          l.range_m = planned_.range_m;
+          l.expected_gain = planned_.gain;
+          started_ = l;
+        }
       }
       break;
     case SearchState::kLook: {
@@ -210,10 +315,22 @@ SearchCommand SearchPlan::decide(Seconds t, const robot::RobotState& s, TargetSt
       // without a frame once out of time: never in a period whose frame shows a candidate.
       if (fresh && observed == TargetStatus::kUnconfirmed) {
         unconfirmed_ = true;
+        if (candidate_w) candidate_w_ = candidate_w;
         break;
       }
+      // Weak evidence (a candidate refused by a check) keeps the look on more frames, as long
+      // as a candidate would be held.
+      if (fresh && weak && belief_ && !head_only_ && t - look_started_ <= opt_.confirm_timeout_s) break;
       const bool in_time = t - look_started_ <= opt_.confirm_timeout_s;
       if (fresh ? unconfirmed_ && in_time : !unconfirmed_ || in_time) break;
+      if (belief_ && !head_only_) {
+        on_the_way_ = true;
+        belief_->miss(s.wMb_odom * robot::headCameraPose(head_, s.pan_rad, s.tilt_rad));
+        if (candidate_w_) belief_->candidate(*candidate_w_);
+        snapshot_ = belief_->snapshot();
+        planNext(s);
+        break;
+      }
       markSeen(heading + pan_target_);
       if (nextLook(heading, pan_target_)) {
         state_ = SearchState::kPointHead;
@@ -223,9 +340,14 @@ SearchCommand SearchPlan::decide(Seconds t, const robot::RobotState& s, TargetSt
       break;
     }
     case SearchState::kTurnBase: {
+      if (belief_ && !head_only_ && holdOnTheWay(t, s, observed, candidate_w)) break;
       const double err = std::remainder(turn_target_ - heading, 2 * M_PI);
       if (std::abs(err) > opt_.heading_tolerance_rad) {
         c.base_w_radps = std::clamp(2.0 * err, -opt_.turn_speed_radps, opt_.turn_speed_radps);
+        break;
+      }
+      if (belief_ && !head_only_) {
+        state_ = SearchState::kPointHead;
         break;
       }
       if (move_dir_.squaredNorm() > 0) {  // a viewpoint move follows
@@ -241,6 +363,11 @@ SearchCommand SearchPlan::decide(Seconds t, const robot::RobotState& s, TargetSt
       break;
     }
     case SearchState::kMoveBase: {
+      if (belief_ && !head_only_) {
+        if (holdOnTheWay(t, s, observed, candidate_w)) break;
+        if (followPath(s, &c)) state_ = SearchState::kTurnBase;
+        break;
+      }
       const double done = (s.wMb_odom.t.head<2>() - move_from_).dot(move_dir_);
       const double left = opt_.viewpoint_step_m - done;
       if (left > 0.01) {
@@ -265,6 +392,12 @@ SearchCommand SearchPlan::decide(Seconds t, const robot::RobotState& s, TargetSt
   c.tilt_rad = tilt_;
   c.look = state_ == SearchState::kLook;
   c.look_after = settle_until_;
+  if (belief_ && !head_only_ && on_the_way_ &&
+      (state_ == SearchState::kMoveBase || state_ == SearchState::kTurnBase)) {
+    // On the way, frames are looked at too: a target seen while driving stops the base.
+    c.look = true;
+    c.look_after = t;
+  }
   if (state_ == SearchState::kFound || state_ == SearchState::kNotFound) {
     c.base_v_mps = c.base_w_radps = 0;
     c.pan_rad = s.pan_rad;

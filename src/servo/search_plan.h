@@ -15,8 +15,19 @@
 // (kNotFound). An unconfirmed target holds the look even through frames that miss it, until it
 // is confirmed or confirm_timeout_s has passed.
 //
+// With a belief (useBelief: a room map, or none for an unknown room) the search instead follows
+// servo/search_belief.h: each look is the one that explains the most belief mass per second from
+// wherever the base can reach, the base drives there along a free path (kMoveBase: waypoints,
+// turning in place towards each, then kTurnBase to the look's heading), every missed look
+// lowers the belief where it would have seen the target, an unconfirmed candidate that did not
+// confirm raises it around the candidate, and the search ends (kNotFound) only when every place
+// has been seen well enough (BeliefSearch::done) or no look can add anything; otherwise the
+// controller's time budget ends it. A search after a loss (head_only) keeps the sweep.
+//
 // Directions are bearings in the odometry frame (rad, counter-clockwise from x_w): base heading
 // + pan. Metres, radians, seconds.
+#include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -24,6 +35,8 @@
 #include "core/types.h"
 #include "robot/enon_model.h"
 #include "robot/hal.h"
+#include "servo/search_belief.h"
+#include "servo/search_map.h"
 #include "servo/target_estimator.h"
 
 namespace refgrasp::servo {
@@ -36,10 +49,10 @@ struct SearchPlanOptions {
   double head_tolerance_rad = 0.01;  ///< head "at" its target when pan and tilt are this close
   /// A look with an unconfirmed target waits this long for the confirmation.
   double confirm_timeout_s = 1.0;
-  double turn_speed_radps = 0.6;
+  double turn_speed_radps = 0.9;     ///< the base's limit is 1.0; its wheels allow 0.9 while driving slowly
   double heading_tolerance_rad = 0.02;
   double viewpoint_step_m = 0.8;
-  double drive_speed_mps = 0.5;
+  double drive_speed_mps = 0.7;      ///< below the base's 0.83 limit, leaving its wheels room to steer
   int max_viewpoints = 1;            ///< new viewpoints tried after the first
   /// When the head's sweep from a viewpoint finds nothing and a viewpoint is left, drive to it
   /// before turning the base to look behind (a target too small to detect from afar is found
@@ -78,15 +91,26 @@ class SearchPlan {
   SearchPlan(const robot::EnonModel& model, const Intrinsics& camera,
              const SearchPlanOptions& options = {});
 
+  /// Searches by belief from now on (the next restart): `map` in the odometry frame (empty: an
+  /// unknown room). Throws std::invalid_argument for bad options.
+  void useBelief(const RoomMap& map, const BeliefSearchOptions& options);
+  bool beliefMode() const { return belief_ != nullptr; }
+
   /// Starts over from the current state: nothing seen yet, the current heading as the start.
   /// `head_only`: a search after a loss, next to the table with the arm out: the first look is
   /// where the head points now (it was on the target), at the head's current tilt, and the base
   /// neither turns nor drives; when the head's looks find nothing the search ends (kNotFound).
-  void restart(const robot::RobotState& state, bool head_only = false);
+  /// `hint_w` (belief mode): where the target was last seen (odometry x, y): looked at first.
+  void restart(const robot::RobotState& state, bool head_only = false,
+               const std::optional<Eigen::Vector2d>& hint_w = std::nullopt);
   /// One control period. `observed`: the estimator's verdict on a frame looked at this period
   /// (kNone when no frame was looked at); `frame_stamp` its capture time.
+  /// `candidate_w`: with kUnconfirmed, where the candidate stands (odometry x, y), if known.
+  /// `weak`: the frame's detector saw weak evidence (a candidate refused by a check).
   SearchCommand decide(Seconds t, const robot::RobotState& state, TargetStatus observed,
-                       Seconds frame_stamp);
+                       Seconds frame_stamp,
+                       const std::optional<Eigen::Vector2d>& candidate_w = std::nullopt,
+                       bool weak = false);
 
   SearchState state() const { return state_; }
   int looks() const { return looks_; }
@@ -97,6 +121,13 @@ class SearchPlan {
   std::vector<double> panGrid() const;
   /// Fraction of all directions seen from the current viewpoint.
   double coverage() const;
+  /// Belief mode: the belief after the last look (null otherwise), the look started by the last
+  /// decide() (once), the plan being followed, and why the search ended ("" while it runs).
+  std::shared_ptr<const SearchBelief> belief() const { return snapshot_; }
+  std::optional<SearchLook> takeStartedLook();
+  const PlannedLook& planned() const { return planned_; }
+  const BeliefSearch* beliefSearch() const { return belief_.get(); }
+  const std::string& endReason() const { return end_reason_; }
 
  private:
   bool seen(double bearing) const;
@@ -105,8 +136,18 @@ class SearchPlan {
   double gain(double heading, double pan) const;
   bool nextLook(double heading, double pan_now);
   void startTurnOrMove(const robot::RobotState& s);
+  /// Belief mode: the look after this one (or kNotFound).
+  void planNext(const robot::RobotState& s);
+  /// Belief mode, driving or turning: a confirmed target ends the search, a candidate stops
+  /// the base and is looked at (true: the state changed).
+  bool holdOnTheWay(Seconds t, const robot::RobotState& s, TargetStatus observed,
+                    const std::optional<Eigen::Vector2d>& candidate_w);
+  /// Belief mode: base command along the planned path; true when its end is reached.
+  bool followPath(const robot::RobotState& s, SearchCommand* c);
 
   robot::HeadModel head_;
+  robot::EnonModel model_;
+  Intrinsics camera_;
   SearchPlanOptions opt_;
   double half_ = 0;
   std::vector<double> grid_;
@@ -121,6 +162,16 @@ class SearchPlan {
   int viewpoint_ = 0, looks_ = 0;
   bool head_only_ = false;
   double tilt_ = 0;  ///< of every look
+  // Belief mode.
+  std::shared_ptr<BeliefSearch> belief_;
+  std::shared_ptr<const SearchBelief> snapshot_;
+  PlannedLook planned_;
+  size_t waypoint_ = 0;
+  std::optional<Eigen::Vector2d> candidate_w_;  ///< the look's last unconfirmed candidate
+  std::optional<SearchLook> started_;
+  std::string end_reason_;
+  double half_fov_ = 0;
+  bool on_the_way_ = true;  ///< frames taken while driving or turning are looked at
 };
 
 }  // namespace refgrasp::servo

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "detector/object.h"
+#include "grasp/room_map.h"
 #include "robot/enon_model.h"
 #include "robot/sim/scenario.h"
 #include "robot/sim/sim_enon.h"
@@ -86,7 +87,8 @@ inline GraspRun runGrasp(const Target& target, servo::TargetEstimator& estimator
     run.error = "could not activate the simulated enon";
     return run;
   }
-  servo::GraspController ctl(*robot, estimator, target.world().oMg, target.extent_o, options);
+  servo::GraspController ctl(*robot, estimator, target.world().oMg, target.extent_o,
+                             grasp_app::withRoom(options, target.scenario, target.extent_o));
   const double dt = model.control_period_s;
   std::vector<bool> left_start(static_cast<size_t>(model.arm.dof()), false);
   double t = 0;

@@ -4,13 +4,15 @@
 //   grasp_statistics run SCENARIO.yaml vision|oracle FIRST_SEED LAST_SEED OUT.jsonl
 //       one grasp per seed with vision (rendered frames, the tracker pipeline) or with the oracle
 //       (ground truth, no rendering); one JSON line per run in OUT.jsonl; exit 0.
-//   grasp_statistics check DIR NAME REQUIRED MAX_TIME_RATIO
+//   grasp_statistics check DIR NAME REQUIRED MAX_TIME_RATIO [MAX_FIND_RATIO]
 //       reads DIR/NAME.vision.jsonl and DIR/NAME.oracle.jsonl (the shards of one scenario) and checks, for vision and for the
 //       oracle separately, that the successes reach the REQUIRED fraction ("19/20": at least
 //       ceil(19/20 x runs)), where success = the target held at the end, no collision, no joint
 //       on a limit, and no motion on an unconfirmed or lost target on any iteration; and that the
 //       median simulated time of the vision runs is at most MAX_TIME_RATIO x the oracle's on the
-//       same seeds. Prints the table; exit 0 when every check holds, 1 otherwise.
+//       same seeds; with MAX_FIND_RATIO, also the median time to find the target (the search
+//       phases' time; a run that never found it counts its whole time) on those seeds. Prints
+//       the table; exit 0 when every check holds, 1 otherwise.
 // The run shards are ctest FIXTURES_SETUP of the check, so -j runs the shards in parallel.
 #include <cstdio>
 #include <cmath>
@@ -77,6 +79,13 @@ json runOne(const std::string& scenario, uint64_t seed, bool oracle) {
   return j;
 }
 
+/// Time to find the target: the search phases' time when a search found it, else the run's time.
+double findTime(const json& r) {
+  const json& p = r["phases"];
+  if (p.contains("approach") && p.contains("search")) return p["search"]["time_s"].get<double>();
+  return r["sim_time_s"].get<double>();
+}
+
 double median(std::vector<double> v) {
   if (v.empty()) return NAN;
   std::sort(v.begin(), v.end());
@@ -97,7 +106,7 @@ double fraction(const std::string& text) {
 }
 
 int check(const std::string& dir, const std::string& name, const std::string& required,
-          double max_ratio) {
+          double max_ratio, double max_find_ratio) {
   const double need = fraction(required);
   std::vector<json> runs;
   for (const char* estimator : {"vision", "oracle"}) {
@@ -105,9 +114,13 @@ int check(const std::string& dir, const std::string& name, const std::string& re
     for (std::string l; std::getline(in, l);)
       if (!l.empty()) runs.push_back(json::parse(l));
   }
-  std::map<int, double> oracle_time;  // by seed
+  std::map<int, double> oracle_time, oracle_find;  // by seed
   for (const json& r : runs)
-    if (r["estimator"] == "oracle") oracle_time[r["seed"].get<int>()] = r["sim_time_s"].get<double>();
+    if (r["estimator"] == "oracle") {
+      oracle_time[r["seed"].get<int>()] = r["sim_time_s"].get<double>();
+      oracle_find[r["seed"].get<int>()] = findTime(r);
+    }
+  std::vector<double> fv, fo_same_seeds;
   std::vector<double> tv, to_same_seeds, to;
   int ok_v = 0, ok_o = 0, n_v = 0, n_o = 0;
   double cpu_v = 0, cpu_o = 0;
@@ -125,6 +138,8 @@ int check(const std::string& dir, const std::string& name, const std::string& re
         pass = false;
       } else {
         to_same_seeds.push_back(o->second);
+        fv.push_back(findTime(r));
+        fo_same_seeds.push_back(oracle_find.at(r["seed"].get<int>()));
       }
     }
     if (!r["success"].get<bool>())
@@ -159,6 +174,13 @@ int check(const std::string& dir, const std::string& name, const std::string& re
     std::printf("%s: vision/oracle median time ratio %.3f > %.2f\n", name.c_str(), ratio, max_ratio);
     pass = false;
   }
+  const double find_ratio = median(fv) / median(fo_same_seeds);
+  std::printf("%s: median time to find, vision %.2f s, oracle %.2f s on the same seeds, ratio %.3f\n",
+              name.c_str(), median(fv), median(fo_same_seeds), find_ratio);
+  if (max_find_ratio > 0 && !(find_ratio <= max_find_ratio)) {
+    std::printf("%s: vision/oracle median time to find %.3f > %.2f\n", name.c_str(), find_ratio, max_find_ratio);
+    pass = false;
+  }
   return pass ? 0 : 1;
 }
 
@@ -183,9 +205,10 @@ int main(int argc, char** argv) {
     }
     return out ? 0 : 1;
   }
-  if (cmd == "check" && argc == 6) return check(argv[2], argv[3], argv[4], std::atof(argv[5]));
+  if (cmd == "check" && (argc == 6 || argc == 7))
+    return check(argv[2], argv[3], argv[4], std::atof(argv[5]), argc == 7 ? std::atof(argv[6]) : 0);
   std::fprintf(stderr,
                "usage: grasp_statistics run SCENARIO.yaml vision|oracle FIRST_SEED LAST_SEED OUT.jsonl\n"
-               "       grasp_statistics check DIR NAME REQUIRED(e.g. 19/20) MAX_TIME_RATIO\n");
+               "       grasp_statistics check DIR NAME REQUIRED(e.g. 19/20) MAX_TIME_RATIO [MAX_FIND_RATIO]\n");
   return 2;
 }

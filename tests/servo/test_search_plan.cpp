@@ -1,5 +1,6 @@
-// The search plan (servo/search_plan.h): the looks it takes, each direction once, base turns
-// and viewpoint moves; on the simulated enon through the grasp controller with the oracle.
+// The search plan (servo/search_plan.h): the sweep's looks, each direction once, base turns and
+// viewpoint moves, and the search by belief over the room's tables; on the simulated enon
+// through the grasp controller with the oracle.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -30,7 +31,14 @@ struct SearchRun {
   std::vector<double> look_bearings;  ///< odometry heading + pan at each look
 };
 
-SearchRun runSearch(const Target& target, servo::GraspOptions o = {}) {
+/// The sweep (GraspOptions::belief_search false), unless `o` says otherwise.
+servo::GraspOptions sweep() {
+  servo::GraspOptions o;
+  o.belief_search = false;
+  return o;
+}
+
+SearchRun runSearch(const Target& target, servo::GraspOptions o = sweep()) {
   servo::OracleEstimator oracle(target.object);
   SearchRun sr;
   std::string last;
@@ -94,7 +102,7 @@ TEST(SearchPlan, FindsATargetOutsideTheFirstViewOnTheSecondLook) {
 TEST(SearchPlan, TurnsTheBaseOnceWhenTheHeadCannotSeeTheTarget) {
   Target t = loadTarget(scenarioPath("table_single"));
   t.scenario.start_theta_rad = M_PI;  // the table behind the robot
-  servo::GraspOptions o;
+  servo::GraspOptions o = sweep();
   o.search.move_before_turning = false;
   const SearchRun s = runSearch(t, o);
   EXPECT_TRUE(s.found) << s.outcome;
@@ -129,11 +137,41 @@ TEST(SearchPlan, GivesUpWhenEveryDirectionOfEveryViewpointWasSeen) {
   Target t = loadTarget(scenarioPath("table_single"));
   t.scenario.start_x_m = -2.0;
   t.scenario.start_y_m = 0.4;
-  servo::GraspOptions o;
+  servo::GraspOptions o = sweep();
   o.search.max_viewpoints = 0;
   servo::OracleEstimator oracle(t.object);
   const GraspRun r = runGrasp(t, oracle, o, 120, false);
   EXPECT_FALSE(r.report.success);
   EXPECT_EQ(r.report.phases.at("search").outcome, "not_found");
+  EXPECT_TRUE(r.violations.empty()) << r.violations.front();
+}
+
+// The search by belief on the same set-ups: the table behind the robot is looked at first
+// (one turn, no look elsewhere), sooner than the sweep finds it.
+TEST(SearchPlan, ByBeliefTheTableBehindIsLookedAtFirst) {
+  Target t = loadTarget(scenarioPath("table_single"));
+  t.scenario.start_theta_rad = M_PI;
+  servo::GraspOptions o = sweep();
+  o.search.move_before_turning = false;
+  const SearchRun swept = runSearch(t, o);
+  const SearchRun s = runSearch(t, servo::GraspOptions());
+  EXPECT_TRUE(s.found) << s.outcome;
+  EXPECT_LE(s.looks, 2);
+  EXPECT_LT(s.time_s, 0.6 * swept.time_s) << "belief " << s.time_s << " s, sweep " << swept.time_s << " s";
+}
+
+// Where the sweep gives up (the target too far to see, no viewpoint left), the search by belief
+// drives closer along a free path and finds it; nothing moves on an unconfirmed target.
+TEST(SearchPlan, ByBeliefASearchDoesNotGiveUpWhileATableWasNotSeenWell) {
+  Target t = loadTarget(scenarioPath("table_single"));
+  t.scenario.start_x_m = -2.0;
+  t.scenario.start_y_m = 0.4;
+  servo::GraspOptions o;
+  o.search.max_viewpoints = 0;
+  servo::OracleEstimator oracle(t.object);
+  const GraspRun r = runGrasp(t, oracle, o, 120, false);
+  EXPECT_EQ(r.report.phases.at("search").outcome, "found");
+  EXPECT_TRUE(r.report.success) << r.report.failure;
+  EXPECT_TRUE(r.collisions.empty());
   EXPECT_TRUE(r.violations.empty()) << r.violations.front();
 }

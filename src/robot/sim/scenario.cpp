@@ -238,11 +238,10 @@ SimObject readObject(Reader& r, const YAML::Node& node, const std::string& where
 }
 
 // Table: a solid block, frame at the centre of its top, z up, x along its length.
-SimObject readTable(Reader& r, const YAML::Node& node) {
-  const std::string w = "table";
-  r.onlyKeys(node, w, {"size_m", "pose", "texture", "side_texture"});
+SimObject readTable(Reader& r, const YAML::Node& node, const std::string& w, const std::string& name) {
+  r.onlyKeys(node, w, {"name", "size_m", "pose", "texture", "side_texture"});
   SimObject t;
-  t.name = "table";
+  t.name = name;
   t.kind = ObjectKind::kTable;
   const Eigen::Vector3d size = r.positiveSize(node, w, "size_m", 3);
   const Pose floorMt = r.pose(node, w, "pose");  // pose of the table's footprint centre on the floor
@@ -311,7 +310,7 @@ Scenario loadScenario(const std::string& path) {
   Reader r(path);
   const YAML::Node& root = r.root();
   r.onlyKeys(root, "", {"seed", "max_duration_s", "robot_start", "background", "room", "table",
-                        "objects", "camera", "faults"});
+                        "tables", "objects", "camera", "faults"});
   Scenario s;
   s.path = path;
   const double seed = r.number(root, "", "seed");
@@ -341,7 +340,20 @@ Scenario loadScenario(const std::string& path) {
     if (!names.insert(s.world.objects.back().name).second)
       r.file().fail(where + ".name", "duplicate object name '" + s.world.objects.back().name + "'");
   }
-  if (root["table"]) s.world.objects.push_back(readTable(r, r.section(root, "table", "")));
+  if (root["table"]) s.world.objects.push_back(readTable(r, r.section(root, "table", ""), "table", "table"));
+  if (root["tables"]) {
+    const YAML::Node tables = root["tables"];
+    if (!tables.IsSequence() || tables.size() == 0) r.file().fail("tables", "expected a non-empty list");
+    if (tables.size() > kMaxObjects)
+      r.file().fail("tables", std::to_string(tables.size()) + " tables, at most " + std::to_string(kMaxObjects));
+    for (size_t i = 0; i < tables.size(); ++i) {
+      const std::string where = "tables[" + std::to_string(i) + "]";
+      if (!tables[i].IsMap()) r.file().fail(where, "expected a map");
+      const std::string name = tables[i]["name"] ? r.string(tables[i], where, "name") : "table_" + std::to_string(i);
+      s.world.objects.push_back(readTable(r, tables[i], where, name));
+      if (!names.insert(name).second) r.file().fail(where + ".name", "duplicate name '" + name + "'");
+    }
+  }
   if (root["room"]) readRoom(r, r.section(root, "room", ""), &s.world);
 
   if (root["camera"]) {
