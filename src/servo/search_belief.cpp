@@ -17,6 +17,18 @@ constexpr int kBearings = 24;       // bearings tried per viewpoint (15 deg apar
 constexpr int kTilts = 3;           // tilts tried, evenly over [tilt_min, tilt_max]
 constexpr double kSampleM = 0.05;   // segment and ray sampling step
 constexpr double kTargetClearM = 0.15;  // the last part of a ray (the target's own surface) never occludes
+constexpr int kFacings = BeliefSearch::kFacings;
+/// Prior weight of facing direction `dir` for objects on furniture whose room side faces `room`
+/// (zero: any facing): the way into the room most, sideways little, towards the wall never.
+double facingPrior(const Eigen::Vector2d& dir, const Eigen::Vector2d& room) {
+  if (room.isZero()) return 1;
+  const double c = dir.dot(room);
+  return c < -1e-9 ? 0 : c + 0.05;
+}
+Eigen::Vector2d facingDir(int k) {
+  const double a = 2 * M_PI * k / kFacings;
+  return {std::cos(a), std::sin(a)};
+}
 
 bool finiteIn(double x, double lo, double hi) { return std::isfinite(x) && x >= lo && x <= hi; }
 
@@ -41,11 +53,13 @@ void BeliefSearchOptions::check() const {
   check(finiteIn(detect_slope_px, 1e-3, 1e4), w + "detect_slope_px", "must be > 0");
   check(finiteIn(detect_max, 1e-3, 1), w + "detect_max", "must be in (0, 1]");
   check(finiteIn(image_margin_px, 0, 1000), w + "image_margin_px", "must be in [0, 1000]");
+  check(finiteIn(min_look_range_m, 0.05, 10), w + "min_look_range_m", "must be in [0.05, 10]");
   check(finiteIn(max_view_range_m, 0.1, 100), w + "max_view_range_m", "must be in [0.1, 100]");
   check(finiteIn(viewpoint_spacing_m, 0.1, 5), w + "viewpoint_spacing_m", "must be in [0.1, 5]");
   check(finiteIn(clearance_m, 0, 2), w + "clearance_m", "must be in [0, 2]");
   check(finiteIn(candidate_boost, 1, 1e3), w + "candidate_boost", "must be in [1, 1000]");
   check(finiteIn(candidate_radius_m, 0, 5), w + "candidate_radius_m", "must be in [0, 5]");
+  check(finiteIn(pan_margin_rad, 0, 1.5), w + "pan_margin_rad", "must be in [0, 1.5]");
   check(finiteIn(against_wall_m, 0, 100), w + "against_wall_m", "must be in [0, 100]");
   check(finiteIn(facing_full_rad, 0, M_PI) && finiteIn(facing_none_rad, facing_full_rad + 1e-3, M_PI),
         w + "facing_none_rad", "must satisfy 0 <= facing_full_rad < facing_none_rad <= pi");
@@ -129,7 +143,7 @@ void BeliefSearch::reset(const Pose& wMb) {
   grid_.rows = std::max(1, static_cast<int>(std::ceil((hi.y() - lo.y()) / opt_.cell_m)));
   grid_.height_m.assign(static_cast<size_t>(grid_.cols * grid_.rows), 0.f);
   cell_index_.clear();
-  cell_facing_.clear();
+  prior_.clear();
   const bool surfaces = std::any_of(map_.fixtures.begin(), map_.fixtures.end(),
                                     [](const RoomFixture& f) { return f.surface; });
   for (int r = 0; r < grid_.rows; ++r)
@@ -152,10 +166,12 @@ void BeliefSearch::reset(const Pose& wMb) {
       if (h < 0) continue;
       grid_.height_m[static_cast<size_t>(r * grid_.cols + c)] = static_cast<float>(h);
       cell_index_.push_back(r * grid_.cols + c);
-      cell_facing_.push_back(facing);
+      // Each cell holds the same prior, spread over its facings by facingPrior.
+      double w[kFacings], sum = 0;
+      for (int k = 0; k < kFacings; ++k) sum += w[k] = facingPrior(facingDir(k), facing);
+      for (int k = 0; k < kFacings; ++k) prior_.push_back(w[k] / sum);
     }
-  const double each = cell_index_.empty() ? 0 : 1.0 / static_cast<double>(cell_index_.size());
-  prior_.assign(cell_index_.size(), each);
+  for (double& p : prior_) p /= static_cast<double>(cell_index_.size());
   mass_ = prior_;
   best_pd_.assign(prior_.size(), 0);
   prior_total_ = cell_index_.empty() ? 0 : 1;
@@ -164,6 +180,7 @@ void BeliefSearch::reset(const Pose& wMb) {
 
 void BeliefSearch::buildViewpoints(const Pose& wMb) {
   viewpoints_.clear();
+  links_.clear();
   const Eigen::Vector2d start = wMb.t.head<2>();
   if (map_.empty()) {
     const double h = headingOf(wMb);
@@ -183,6 +200,15 @@ void BeliefSearch::buildViewpoints(const Pose& wMb) {
     for (int j = j0; j <= j1; ++j) {
       const Eigen::Vector2d p = start + s * Eigen::Vector2d(i, j);
       if (free(p)) viewpoints_.push_back(p);
+    }
+  // Grid neighbours (8-connected) joined by a free straight line.
+  links_.assign(viewpoints_.size(), {});
+  for (size_t u = 0; u < viewpoints_.size(); ++u)
+    for (size_t v = u + 1; v < viewpoints_.size(); ++v) {
+      const double e = (viewpoints_[v] - viewpoints_[u]).norm();
+      if (e > 1.5 * s || !freeSegment(viewpoints_[u], viewpoints_[v])) continue;
+      links_[u].push_back({static_cast<int>(v), e});
+      links_[v].push_back({static_cast<int>(u), e});
     }
 }
 
@@ -212,10 +238,9 @@ Eigen::Vector2d BeliefSearch::roomFacing(const Footprint& f) const {
   return nearest <= opt_.against_wall_m ? away : Eigen::Vector2d::Zero();
 }
 
-double BeliefSearch::facingFactor(int cell, const Eigen::Vector2d& to_camera) const {
-  const Eigen::Vector2d& f = cell_facing_[static_cast<size_t>(cell)];
-  if (f.isZero() || to_camera.squaredNorm() < 1e-12) return 1;
-  const double cosa = f.dot(to_camera.normalized());
+double BeliefSearch::facingFactor(int facing, const Eigen::Vector2d& to_camera) const {
+  if (to_camera.squaredNorm() < 1e-12) return 1;
+  const double cosa = facingDir(facing).dot(to_camera.normalized());
   const double lo = std::cos(opt_.facing_none_rad), hi = std::cos(opt_.facing_full_rad);
   return std::clamp((cosa - lo) / (hi - lo), 0.0, 1.0);
 }
@@ -226,43 +251,62 @@ Eigen::Vector3d BeliefSearch::targetAt(int cell) const {
   return {xy.x(), xy.y(), grid_.height_m[static_cast<size_t>(g)] + opt_.target_above_m};
 }
 
-double BeliefSearch::unoccludedPd(const Pose& wMc, const Pose& cMw, int cell, double* depth) const {
+double BeliefSearch::unoccludedPd(const Pose& cMw, int cell, double* depth) const {
   const Eigen::Vector3d P = targetAt(cell);
   const Eigen::Vector3d X = cMw * P;
-  if (X.z() < 0.2 || X.norm() > opt_.max_view_range_m) return 0;
+  if (X.z() < opt_.min_look_range_m || X.norm() > opt_.max_view_range_m) return 0;
   const double u = camera_.fx * X.x() / X.z() + camera_.cx, v = camera_.fy * X.y() / X.z() + camera_.cy;
   const double m = opt_.image_margin_px;
   if (u < m || v < m || u > camera_.width - m || v > camera_.height - m) return 0;
   if (depth) *depth = X.z();
   const double w = camera_.fx * opt_.target_size_m / X.z();
-  return facingFactor(cell, wMc.t.head<2>() - P.head<2>()) *
-         opt_.detect_max / (1 + std::exp(-(w - opt_.detect_half_px) / opt_.detect_slope_px));
+  return opt_.detect_max / (1 + std::exp(-(w - opt_.detect_half_px) / opt_.detect_slope_px));
 }
 
-double BeliefSearch::detectProbability(const Pose& wMc, int cell) const {
-  const double pd = unoccludedPd(wMc, wMc.inverse(), cell);
+double BeliefSearch::sizePd(const Pose& wMc, int cell) const {
+  const double pd = unoccludedPd(wMc.inverse(), cell);
   return pd > 0 && occluded(wMc.t, targetAt(cell)) ? 0 : pd;
 }
 
-double BeliefSearch::novelPd(int cell, double pd) const {
-  return std::max(0.0, pd - opt_.repeat_discount * best_pd_[static_cast<size_t>(cell)]);
+double BeliefSearch::detectProbability(const Pose& wMc, int cell) const {
+  const double pd = sizePd(wMc, cell);
+  if (pd <= 0) return 0;
+  const Eigen::Vector2d to_camera = wMc.t.head<2>() - targetAt(cell).head<2>();
+  double seen = 0, all = 0;
+  for (int k = 0; k < kFacings; ++k) {
+    const double p = prior_[static_cast<size_t>(cell * kFacings + k)];
+    seen += p * facingFactor(k, to_camera);
+    all += p;
+  }
+  return pd * seen / all;
+}
+
+double BeliefSearch::novelPd(size_t state, double pd) const {
+  return std::max(0.0, pd - opt_.repeat_discount * best_pd_[state]);
 }
 
 void BeliefSearch::miss(const Pose& wMc) {
-  for (size_t i = 0; i < mass_.size(); ++i) {
-    const double pd = detectProbability(wMc, static_cast<int>(i));
-    mass_[i] *= 1 - novelPd(static_cast<int>(i), pd);
-    best_pd_[i] = std::max(best_pd_[i], pd);
+  for (int i = 0; i < cells(); ++i) {
+    const double pd = sizePd(wMc, i);
+    if (pd <= 0) continue;
+    const Eigen::Vector2d to_camera = wMc.t.head<2>() - targetAt(i).head<2>();
+    for (int k = 0; k < kFacings; ++k) {
+      const size_t j = static_cast<size_t>(i * kFacings + k);
+      const double p = pd * facingFactor(k, to_camera);
+      mass_[j] *= 1 - novelPd(j, p);
+      best_pd_[j] = std::max(best_pd_[j], p);
+    }
   }
 }
 
 void BeliefSearch::candidate(const Eigen::Vector2d& xy, double boost) {
   const double k = boost > 0 ? boost : opt_.candidate_boost;
-  for (size_t i = 0; i < mass_.size(); ++i) {
-    const int g = cell_index_[i];
-    if ((grid_.centre(g % grid_.cols, g / grid_.cols) - xy).norm() <= opt_.candidate_radius_m) {
-      mass_[i] *= k;
-      best_pd_[i] = 0;  // a candidate there is news: earlier misses do not discount the next look
+  for (int i = 0; i < cells(); ++i) {
+    if ((targetAt(i).head<2>() - xy).norm() > opt_.candidate_radius_m) continue;
+    for (int f = 0; f < kFacings; ++f) {
+      const size_t j = static_cast<size_t>(i * kFacings + f);
+      mass_[j] *= k;
+      best_pd_[j] = 0;  // a candidate there is news: earlier misses do not discount the next look
     }
   }
 }
@@ -280,8 +324,8 @@ std::shared_ptr<const SearchBelief> BeliefSearch::snapshot() const {
   double s = 0;
   for (const double m : mass_) s += m;
   if (s > 0)
-    for (size_t i = 0; i < mass_.size(); ++i)
-      b->p[static_cast<size_t>(cell_index_[i])] = static_cast<float>(mass_[i] / s);
+    for (size_t j = 0; j < mass_.size(); ++j)
+      b->p[static_cast<size_t>(cell_index_[j / kFacings])] += static_cast<float>(mass_[j] / s);
   return b;
 }
 
@@ -308,14 +352,11 @@ void BeliefSearch::distances(const Eigen::Vector2d& from, std::vector<double>* d
     const auto [d, u] = open.top();
     open.pop();
     if (d > (*dist)[static_cast<size_t>(u)]) continue;
-    for (size_t v = 0; v < n; ++v) {
-      const double e = (viewpoints_[v] - viewpoints_[static_cast<size_t>(u)]).norm();
-      if (e > reach || e < 1e-9 || d + e >= (*dist)[v]) continue;
-      // Grid neighbours: both ends are free and the grid is fine, so the midpoint decides.
-      if (!free(0.5 * (viewpoints_[v] + viewpoints_[static_cast<size_t>(u)]))) continue;
-      (*dist)[v] = d + e;
-      (*prev)[v] = u;
-      open.push({d + e, static_cast<int>(v)});
+    for (const auto& [v, e] : links_[static_cast<size_t>(u)]) {
+      if (d + e >= (*dist)[static_cast<size_t>(v)]) continue;
+      (*dist)[static_cast<size_t>(v)] = d + e;
+      (*prev)[static_cast<size_t>(v)] = u;
+      open.push({d + e, v});
     }
   }
 }
@@ -379,17 +420,19 @@ PlannedLook BeliefSearch::next(const Pose& wMb, double pan_now, double drive_spe
     // Cells this stand can see at all (fixtures, walls), from the camera's height.
     const Eigen::Vector3d eye(at.x(), at.y(), camera_height_m_);
     std::vector<int> visible;
-    for (size_t i = 0; i < mass_.size(); ++i) {
-      if (mass_[i] <= 0) continue;
-      const Eigen::Vector3d P = targetAt(static_cast<int>(i));
+    for (int i = 0; i < cells(); ++i) {
+      double m = 0;
+      for (int k = 0; k < kFacings; ++k) m += mass_[static_cast<size_t>(i * kFacings + k)];
+      if (m <= 0) continue;
+      const Eigen::Vector3d P = targetAt(i);
       if ((P.head<2>() - at).norm() > opt_.max_view_range_m) continue;
-      if (!occluded(eye, P)) visible.push_back(static_cast<int>(i));
+      if (!occluded(eye, P)) visible.push_back(i);
     }
     if (visible.empty()) continue;
     for (int b = 0; b < kBearings; ++b) {
       const double bearing = -M_PI + 2 * M_PI * b / kBearings;
       const double rel = std::remainder(bearing - arrive, 2 * M_PI);
-      const double pan_rad = std::clamp(rel, pan.min_rad, pan.max_rad);
+      const double pan_rad = std::clamp(rel, pan.min_rad + opt_.pan_margin_rad, pan.max_rad - opt_.pan_margin_rad);
       const double heading = bearing - pan_rad;
       const double turn_s = std::abs(std::remainder(heading - arrive, 2 * M_PI)) / turn_speed_radps;
       const double pan_s = std::max(0.0, std::abs(pan_rad - pan_now) / opt_.pan_speed_radps - travel_s);
@@ -401,9 +444,16 @@ PlannedLook BeliefSearch::next(const Pose& wMb, double pan_now, double drive_spe
         double gain = 0, range = 0;
         for (const int i : visible) {  // occlusion from the stand's eye, computed once above
           double depth = 0;
-          const double pd = novelPd(i, unoccludedPd(wMc, cMw, i, &depth));
-          gain += mass_[static_cast<size_t>(i)] * pd;
-          range += mass_[static_cast<size_t>(i)] * pd * depth;
+          const double pd = unoccludedPd(cMw, i, &depth);
+          if (pd <= 0) continue;
+          const Eigen::Vector2d to_camera = wMc.t.head<2>() - targetAt(i).head<2>();
+          for (int k = 0; k < kFacings; ++k) {
+            const size_t j = static_cast<size_t>(i * kFacings + k);
+            if (mass_[j] <= 0) continue;
+            const double g = mass_[j] * novelPd(j, pd * facingFactor(k, to_camera));
+            gain += g;
+            range += g * depth;
+          }
         }
         gain /= total;
         const double utility = gain / cost;

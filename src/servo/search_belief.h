@@ -3,14 +3,15 @@
 // (servo/search_plan.h follows the choice). Everything is in the ODOMETRY frame w (z up);
 // metres, radians, seconds.
 //
-// Belief: a grid of floor cells (servo/search_map.h SearchBelief). With a room map the prior
-// spreads evenly over the tops of its surfaces (tables, shelves); without one, over the floor
-// between min_range_m and unknown_range_m of the start, at unknown_height_m. A look that misses
-// multiplies each cell's mass by 1 - pd, pd the probability that the look would have detected a
-// target standing there: 0 outside the image or behind a fixture, else a logistic in the
-// target's projected size (detect_half_px, detect_slope_px, at most detect_max: the detector's
-// recall by size, docs/results.md), less what earlier looks from views as good already tried
-// (repeat_discount). A look that saw an unconfirmed candidate which did not
+// Belief: over (floor cell, facing): where the target stands and which way its front faces
+// (kFacings directions). With a room map the prior spreads evenly over the tops of its surfaces
+// (tables, shelves); without one, over the floor between min_range_m and unknown_range_m of the
+// start, at unknown_height_m; facings as against_wall_m says. A look that misses multiplies each
+// state's mass by 1 - pd, pd the probability that the look would have detected a target standing
+// and facing so: 0 outside the image, behind a fixture or seen from beyond facing_none_rad of
+// its facing, else a logistic in the target's projected size (detect_half_px, detect_slope_px,
+// at most detect_max: the detector's recall by size, docs/results.md), less what earlier looks
+// from views as good already tried (repeat_discount). A look that saw an unconfirmed candidate which did not
 // confirm multiplies the cells around it by candidate_boost: worth a closer look.
 //
 // Next look: from every viewpoint the base can reach (a grid over the free floor, or, without a
@@ -19,6 +20,7 @@
 // over when the mass left unexplained is below stop_mass of the prior (every place has been
 // seen well enough), or no look can explain anything more.
 #include <memory>
+#include <utility>
 #include <vector>
 
 #include "core/camera.h"
@@ -47,6 +49,9 @@ struct BeliefSearchOptions {
   double detect_max = 0.95;
   double image_margin_px = 16;     ///< the target's centre this far inside the image
   double max_view_range_m = 8;     ///< cells further than this are not looked at
+  /// Looks count only at this depth or more: a target found closer leaves the approach no room
+  /// to line the base up without turning the target out of the head's reach.
+  double min_look_range_m = 1.3;
   /// Viewpoints: a grid this fine over the free floor; free = further than the base's radius
   /// plus clearance_m from every fixture and wall.
   double viewpoint_spacing_m = 0.5;
@@ -58,16 +63,21 @@ struct BeliefSearchOptions {
   /// one viewpoint fail together (the same size, angle and blur), so a search that only repeats
   /// looks from afar learns little and moves closer instead.
   double repeat_discount = 0.7;
-  /// Objects on furniture that stands against a wall (a side within against_wall_m of it) face
-  /// the room: a look counts fully within facing_full_rad of the side facing away from that
-  /// wall, not at all beyond facing_none_rad (the detector's reach is ~60 deg of obliquity, a
-  /// target may be turned a little on its table). Free-standing furniture: any facing.
+  /// A target facing direction d (its front's normal) is seen fully from within facing_full_rad
+  /// of d, not at all beyond facing_none_rad (the detector reaches ~60 deg of obliquity, the
+  /// oracle 69 deg). Objects on furniture that stands against a wall (a side within
+  /// against_wall_m of it) face the room: their facings' prior is cos(angle to the way into the
+  /// room) + 0.05, none towards the wall; on free-standing furniture (and without a map) every
+  /// facing is as likely, so a search may have to walk round a table.
   double against_wall_m = 0.6;
   double facing_full_rad = 0.8;
   double facing_none_rad = 1.3;
   double stop_mass = 0.01;         ///< unexplained mass (of the prior) below which the search ends
   double look_time_s = 0.9;        ///< settle + the look's frames, the cost of every look
   double pan_speed_radps = 1.0;    ///< for the cost of moving the head
+  /// Looks keep the head this far inside its pan limits (the base turns for the rest): a target
+  /// found at the limit leaves the view as soon as the approach turns the base away from it.
+  double pan_margin_rad = 0.5;
   double tilt_min_rad = 0.0, tilt_max_rad = 0.5;  ///< tilts tried (3 evenly)
   /// Throws std::invalid_argument "BeliefSearchOptions.<field>: <problem>".
   void check() const;
@@ -86,6 +96,10 @@ struct PlannedLook {
 
 class BeliefSearch {
  public:
+  /// Directions a target may face (its front's normal), 45 deg apart: the belief is over
+  /// (cell, facing), since a look sees a face only from within ~60 deg of its normal.
+  static constexpr int kFacings = 8;
+
   /// \param camera left camera intrinsics; \param map in the odometry frame (may be empty);
   /// \param line_viewpoints without a map: viewpoints along the start heading at these
   /// distances (m) besides the start. Throws std::invalid_argument for bad options.
@@ -105,12 +119,13 @@ class BeliefSearch {
   /// Unexplained mass as a fraction of the prior (1 at the start).
   double unexplained() const;
   bool done() const { return unexplained() < opt_.stop_mass; }
-  /// pd of a target standing on cell i, seen from the left camera at wMc.
+  /// pd of a target standing on listed cell `cell` (0 .. cells() - 1), seen from the left camera
+  /// at wMc, its facing as the prior has it.
   double detectProbability(const Pose& wMc, int cell) const;
   /// The belief now, normalised (for the log and the video).
   std::shared_ptr<const SearchBelief> snapshot() const;
   const SearchBelief& grid() const { return grid_; }
-  int cells() const { return static_cast<int>(mass_.size()); }
+  int cells() const { return static_cast<int>(cell_index_.size()); }
   const RoomMap& map() const { return map_; }
   /// True when a base at xy is clear of every fixture and wall (the map; always without one).
   bool free(const Eigen::Vector2d& xy) const;
@@ -124,16 +139,19 @@ class BeliefSearch {
  private:
   /// The direction objects on `f` face (away from the wall it stands against), or zero.
   Eigen::Vector2d roomFacing(const Footprint& f) const;
-  /// 1 when a camera in direction `to_camera` from the cell sees the way objects there face,
-  /// falling to 0 (facing_full_rad .. facing_none_rad).
-  double facingFactor(int cell, const Eigen::Vector2d& to_camera) const;
+  /// 1 when a camera in direction `to_camera` from a target facing direction `facing` (of
+  /// kFacings) sees its face, falling to 0 (facing_full_rad .. facing_none_rad).
+  double facingFactor(int facing, const Eigen::Vector2d& to_camera) const;
+  /// pd of a look from wMc at listed cell `cell` for a target facing the camera (occlusion in).
+  double sizePd(const Pose& wMc, int cell) const;
   /// The target's centre if it stood on listed cell `cell` (odometry, m).
   Eigen::Vector3d targetAt(int cell) const;
-  /// pd of a look from wMc (cMw its inverse) at listed cell `cell`, occlusion aside; `depth`:
-  /// the target's depth in the camera (m) when in view.
-  double unoccludedPd(const Pose& wMc, const Pose& cMw, int cell, double* depth = nullptr) const;
-  /// What a look with probability pd adds at a listed cell after the looks so far.
-  double novelPd(int cell, double pd) const;
+  /// pd of a look from the camera at cMw^-1 at listed cell `cell` for a target facing the
+  /// camera, occlusion aside; `depth`: the target's depth in the camera (m) when in view.
+  double unoccludedPd(const Pose& cMw, int cell, double* depth = nullptr) const;
+  /// What a look with probability pd adds at state `state` (cell x kFacings + facing) after the
+  /// looks so far.
+  double novelPd(size_t state, double pd) const;
   bool occluded(const Eigen::Vector3d& from, const Eigen::Vector3d& to) const;
   void buildViewpoints(const Pose& wMb);
   /// Path lengths (m) from `from` to every viewpoint (infinity when unreachable) and the
@@ -147,11 +165,11 @@ class BeliefSearch {
   std::vector<double> line_viewpoints_;
   SearchBelief grid_;              ///< geometry and heights; p unused
   std::vector<int> cell_index_;    ///< grid cells that can hold the target
-  std::vector<Eigen::Vector2d> cell_facing_;  ///< per listed cell: roomFacing of its surface
-  std::vector<double> prior_, mass_;  ///< per listed cell: prior and unexplained mass
-  std::vector<double> best_pd_;       ///< per listed cell: the best pd of the looks so far
+  /// Per state (listed cell x kFacings + facing): prior, unexplained mass, best pd so far.
+  std::vector<double> prior_, mass_, best_pd_;
   double prior_total_ = 0;
   std::vector<Eigen::Vector2d> viewpoints_;
+  std::vector<std::vector<std::pair<int, double>>> links_;  ///< per viewpoint: (neighbour, m)
   double camera_height_m_ = 1.2;
   double body_radius_m_ = 0.25;
 };

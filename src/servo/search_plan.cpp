@@ -137,7 +137,12 @@ void SearchPlan::restart(const robot::RobotState& s, bool head_only,
   started_.reset();
   if (belief_ && !head_only) {
     belief_->reset(s.wMb_odom);
-    if (hint_w) belief_->candidate(*hint_w, kHintBoost);
+    if (hint_w) {
+      belief_->candidate(*hint_w, kHintBoost);
+      // The view it was lost from did not hold it: that view counts as a look already taken,
+      // so the search looks again from a better one (closer, more frontal).
+      belief_->miss(s.wMb_odom * robot::headCameraPose(head_, s.pan_rad, s.tilt_rad));
+    }
     // Back to a lost target: from the viewpoint the belief picks, not from wherever the base
     // happens to see it again (where it was lost, at a grazing angle, too close).
     on_the_way_ = !hint_w;
