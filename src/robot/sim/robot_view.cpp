@@ -106,7 +106,9 @@ cv::Vec3b partColour(const std::string& name) {
   return {160, 160, 160};
 }
 
-Eigen::Vector3d defaultLight() { return Eigen::Vector3d(0.3, 0.2, 1.0).normalized(); }
+Eigen::Vector3d viewLight(const Pose& wMc) {
+  return (-wMc.R.col(2) - 0.4 * wMc.R.col(0) + 0.8 * Eigen::Vector3d::UnitZ()).normalized();
+}
 
 cv::Vec3b lambert(const cv::Vec3b& bgr, const Eigen::Vector3d& n_w, const Eigen::Vector3d& light_w, double ambient) {
   const double k = ambient + (1 - ambient) * std::max(0.0, n_w.dot(light_w));
@@ -165,7 +167,7 @@ cv::Mat renderExternalView(const Intrinsics& cam, const World& world, const Pose
                                            world.background, opt, &inv_depth);
   cv::Mat bgr;
   cv::cvtColor(gray, bgr, cv::COLOR_GRAY2BGR);
-  drawRobotParts(bgr, inv_depth, cam.K(), wMc, parts, defaultLight(), opt.near_m);
+  drawRobotParts(bgr, inv_depth, cam.K(), wMc, parts, viewLight(wMc), opt.near_m);
   return bgr;
 }
 
@@ -180,8 +182,8 @@ Pose lookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target) {
 }
 
 void FollowCameraOptions::check() const {
-  refgrasp::check(std::isfinite(behind_m) && std::isfinite(above_m) && std::isfinite(look_at_height_m) &&
-                      above_m > look_at_height_m,
+  refgrasp::check(std::isfinite(behind_m) && std::isfinite(right_m) && std::isfinite(above_m) &&
+                      std::isfinite(look_ahead_m) && std::isfinite(look_at_height_m) && above_m > look_at_height_m,
                   "FollowCameraOptions", "the eye must be finite and above the point looked at");
   refgrasp::check(std::isfinite(smoothing_s) && smoothing_s >= 0, "FollowCameraOptions.smoothing_s",
                   "must be >= 0");
@@ -205,8 +207,10 @@ Pose FollowCamera::update(const robot::PlanarPose& base, Seconds t) {
     theta_ += alpha * std::remainder(base.theta_rad - theta_, 2 * M_PI);
   }
   last_t_ = t;
-  const Eigen::Vector2d eye = xy_ - opt_.behind_m * Eigen::Vector2d(std::cos(theta_), std::sin(theta_));
-  return lookAt(Eigen::Vector3d(eye.x(), eye.y(), opt_.above_m), Eigen::Vector3d(xy.x(), xy.y(), opt_.look_at_height_m));
+  const Eigen::Vector2d ahead(std::cos(theta_), std::sin(theta_)), left(-ahead.y(), ahead.x());
+  const Eigen::Vector2d eye = xy_ - opt_.behind_m * ahead - opt_.right_m * left;
+  const Eigen::Vector2d at = xy + opt_.look_ahead_m * Eigen::Vector2d(std::cos(base.theta_rad), std::sin(base.theta_rad));
+  return lookAt(Eigen::Vector3d(eye.x(), eye.y(), opt_.above_m), Eigen::Vector3d(at.x(), at.y(), opt_.look_at_height_m));
 }
 
 }  // namespace refgrasp::sim

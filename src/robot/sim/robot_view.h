@@ -49,18 +49,19 @@ cv::Vec3b partColour(const std::string& name);
 cv::Vec3b lambert(const cv::Vec3b& bgr, const Eigen::Vector3d& n_w, const Eigen::Vector3d& light_w,
                   double ambient = 0.35);
 
-/// Direction towards the light of the external view (world frame, unit): above, slightly
-/// from +x +y, so the top and the sides of the robot shade differently.
-Eigen::Vector3d defaultLight();
+/// Direction towards the light of the external view (world frame, unit) for a camera at wMc:
+/// from above, behind and left of the camera, so the sides the camera sees are lit and the
+/// parts' shapes read from their shading.
+Eigen::Vector3d viewLight(const Pose& wMc);
 
 /// Ray-casts `parts` into `bgr` (CV_8UC3, the ideal pinhole image of K) seen from wMc, with a
 /// depth test against inv_depth (CV_32F, 1 / camera z per pixel, 0 = nothing; updated). A pixel
 /// takes the shaded colour of the nearest part its centre's ray hits (no anti-aliasing).
 void drawRobotParts(cv::Mat& bgr, cv::Mat& inv_depth, const Eigen::Matrix3d& K, const Pose& wMc,
-                    const std::vector<RobotPart>& parts, const Eigen::Vector3d& light_w = defaultLight(),
-                    double near_m = 0.01);
+                    const std::vector<RobotPart>& parts, const Eigen::Vector3d& light_w, double near_m = 0.01);
 
-/// The world and the robot's parts seen by a camera without lens distortion at wMc (BGR).
+/// The world and the robot's parts (lit from viewLight(wMc)) seen by a camera without lens
+/// distortion at wMc (BGR).
 /// Throws std::invalid_argument for a camera with distortion.
 cv::Mat renderExternalView(const Intrinsics& cam, const World& world, const Pose& wMc,
                            const std::vector<RobotPart>& parts, const RenderOptions& opt = {});
@@ -70,18 +71,23 @@ cv::Mat renderExternalView(const Intrinsics& cam, const World& world, const Pose
 Pose lookAt(const Eigen::Vector3d& eye, const Eigen::Vector3d& target);
 
 struct FollowCameraOptions {
-  double behind_m = 3.0;           ///< eye this far behind the base along its heading (m)
+  double behind_m = 1.8;           ///< eye this far behind the base along its heading (m)
+  /// ... and this far to its right (m): the enon's arm is on its right and reaches forward, so a
+  /// view from behind and right shows it beside the body, not behind it.
+  double right_m = 2.2;
   double above_m = 2.0;            ///< eye height above the floor (m)
-  double look_at_height_m = 0.8;   ///< the point looked at: above the base centre (m, about the arm)
+  double look_ahead_m = 0.4;       ///< the point looked at: this far ahead of the base centre (m) ...
+  double look_at_height_m = 0.8;   ///< ... at this height (m, about where the hand works)
   double smoothing_s = 0.8;        ///< time constant of the exponential smoothing of the base pose
-  /// 640 x 480, f = 460 px (about 70 degrees across): the robot and the table beside it in view.
-  Intrinsics camera = Intrinsics::pinhole(640, 480, 460, 319.5, 239.5);
+  /// 640 x 480, f = 560 px (about 60 degrees across): the robot and the table beside it in view.
+  Intrinsics camera = Intrinsics::pinhole(640, 480, 560, 319.5, 239.5);
   void check() const;
 };
 
 /// An external camera that follows the robot: the base pose (position and unwrapped heading) is
-/// smoothed exponentially with time constant smoothing_s, the eye placed behind and above the
-/// smoothed pose, looking at the point above it. The first update snaps to the base.
+/// smoothed exponentially with time constant smoothing_s, the eye placed behind, right of and
+/// above the smoothed pose, looking at the point ahead of and above the true base. The first
+/// update snaps to the base.
 class FollowCamera {
  public:
   explicit FollowCamera(const FollowCameraOptions& o = {});

@@ -151,18 +151,19 @@ TEST(RobotView, RenderViewWithDepthIsRenderViewPlusItsDepth) {
   EXPECT_THROW(sim::renderViewWithDepth(distorted, {p}, {}, cv::Mat(), {}, &inv_depth), std::invalid_argument);
 }
 
-// The follow camera: behind and above the base, the point above the base at the image centre;
-// after the base jumps, the smoothed eye has moved 1 - exp(-dt / tau) of the way.
+// The follow camera: behind, right of and above the base, the point ahead of and above the base
+// at the image centre; after the base jumps, the smoothed eye has moved 1 - exp(-dt / tau) of
+// the way.
 TEST(RobotView, FollowCameraSitsBehindAndAboveAndSmoothes) {
   sim::FollowCameraOptions o;
   sim::FollowCamera f(o);
-  const Pose a = f.update({1.0, 2.0, M_PI / 2}, 0.0);
-  EXPECT_NEAR((a.t - Eigen::Vector3d(1.0, 2.0 - o.behind_m, o.above_m)).norm(), 0, 1e-12);
-  const Eigen::Vector2d c = o.camera.project(a.inverse() * Eigen::Vector3d(1.0, 2.0, o.look_at_height_m));
+  const Pose a = f.update({1.0, 2.0, M_PI / 2}, 0.0);  // heading +y: behind is -y, right is +x
+  EXPECT_NEAR((a.t - Eigen::Vector3d(1.0 + o.right_m, 2.0 - o.behind_m, o.above_m)).norm(), 0, 1e-12);
+  const Eigen::Vector2d c = o.camera.project(a.inverse() * Eigen::Vector3d(1.0, 2.0 + o.look_ahead_m, o.look_at_height_m));
   EXPECT_NEAR(c.x(), o.camera.cx, 1e-9);
   EXPECT_NEAR(c.y(), o.camera.cy, 1e-9);
   const Pose b = f.update({2.0, 2.0, M_PI / 2}, 0.4);
-  EXPECT_NEAR(b.t.x(), 1.0 + (1 - std::exp(-0.4 / o.smoothing_s)), 1e-12);
+  EXPECT_NEAR(b.t.x(), 1.0 + o.right_m + (1 - std::exp(-0.4 / o.smoothing_s)), 1e-12);
   EXPECT_NEAR(b.t.z(), o.above_m, 1e-12);
   // The image's x axis stays horizontal.
   EXPECT_NEAR(b.R.col(0).z(), 0, 1e-12);
