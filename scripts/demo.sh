@@ -2,8 +2,9 @@
 # The main job: installs dependencies (Debian 12 packages), builds the apps (Release) and runs
 # search-approach-grasp on the simulated enon with config/scenarios/${SCENARIO:-table_single}.yaml:
 # the enon finds the target, drives to it, aligns its gripper by visual servoing and grasps it.
-# Writes out/demo/grasp.mp4 (the camera view, annotated) and out/demo/log/ (a recording of the
-# frames used plus control.jsonl); prints the summary line. Extra arguments go to
+# Writes out/demo/grasp.mp4 (three panels: the camera view annotated, the robot seen from outside,
+# the map from above) and out/demo/log/ (a recording of the frames used plus control.jsonl);
+# prints the summary line. Extra arguments go to
 # build/app/enon_grasp (see --help), e.g. --oracle or --seed 4.
 set -euo pipefail
 cd "$(dirname "$0")/.."

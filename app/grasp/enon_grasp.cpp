@@ -147,6 +147,7 @@ EnonGraspResult runEnonGraspSession(const EnonGraspOptions& o, std::FILE* progre
     video = std::make_unique<GraspVideo>(o.video, object, robot->camera().rig().left,
                                          o.grasp.frame_period_s > 0 ? 1.0 / o.grasp.frame_period_s
                                                                     : model.head.frame_rate_hz);
+  if (video && sim) video->showOutside(*sim, model);
   detector::Detector det(det_options);
   std::unique_ptr<servo::TargetEstimator> est;
   if (o.oracle) {
@@ -262,7 +263,9 @@ int enonGraspMain(int argc, char** argv) {
   app.add_option("--log", o.log_dir,
                  "write a recording of the frames used and control.jsonl (one line per control "
                  "iteration) to this new folder");
-  app.add_option("--video", o.video, "write the annotated camera view to this video file");
+  app.add_option("--video", o.video,
+                 "write the annotated camera view to this video file (sim: beside it the robot seen\n"
+                 "from a following camera and a top-down map, 1920x480)");
   std::string search = "belief";
   app.add_option("--search", search,
                  "belief: each look where the belief over the target's place says it pays most,\n"

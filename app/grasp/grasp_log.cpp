@@ -189,9 +189,65 @@ cv::Mat GraspVideo::draw(const servo::GraspIteration& it, const detector::Object
   return img;
 }
 
+void GraspVideo::showOutside(const sim::SimEnon& sim, const robot::EnonModel& model) {
+  outside_ = std::make_unique<Outside>();
+  outside_->sim = &sim;
+  outside_->model = model;
+  // The simulated odometry starts at the true start pose in the world frame: no offset.
+  outside_->map = std::make_unique<TopDownMap>(sim.world(), robot::PlanarPose{});
+  outside_->state.base_radius_m = model.base.body_radius_m;
+}
+
+void GraspVideo::observe(const servo::GraspIteration& it) {
+  Outside& o = *outside_;
+  const robot::PlanarPose b = o.sim->trueBasePose();
+  const Eigen::Vector2d p(b.x_m, b.y_m);
+  // The path keeps a point every 2 cm travelled.
+  if (o.state.path_w.empty() || (p - o.state.path_w.back()).norm() >= 0.02) o.state.path_w.push_back(p);
+  o.state.base_w = b;
+  if (it.look_started) o.state.looks.push_back(*it.look_started);
+  if (it.belief) o.belief = it.belief;
+}
+
+cv::Mat GraspVideo::externalPanel() {
+  Outside& o = *outside_;
+  const Pose wMc = o.follow.update(o.sim->trueBasePose(), o.sim->time());
+  const std::vector<sim::RobotPart> parts = sim::robotParts(o.model, o.sim->shapes(), o.sim->wMb(), o.sim->wMc());
+  cv::Mat img = sim::renderExternalView(o.follow.options().camera, o.sim->world(), wMc, parts);
+  const char* label = "outside: camera following the robot";
+  cv::putText(img, label, {8, 20}, cv::FONT_HERSHEY_SIMPLEX, 0.55, cv::Scalar(0, 0, 0), 3, cv::LINE_AA);
+  cv::putText(img, label, {8, 20}, cv::FONT_HERSHEY_SIMPLEX, 0.55, cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
+  return img;
+}
+
+cv::Mat GraspVideo::mapPanel() const {
+  MapFrame f = outside_->state;
+  f.belief = outside_->belief.get();
+  return outside_->map->draw(outside_->sim->world(), f);
+}
+
+cv::Mat GraspVideo::sideBySide(const std::vector<cv::Mat>& panels) {
+  std::vector<cv::Mat> scaled;
+  for (const cv::Mat& p : panels) {
+    if (p.rows == panels.front().rows) {
+      scaled.push_back(p);
+      continue;
+    }
+    cv::Mat s;
+    const double k = static_cast<double>(panels.front().rows) / p.rows;
+    cv::resize(p, s, cv::Size(static_cast<int>(std::lround(p.cols * k)), panels.front().rows), 0, 0, cv::INTER_AREA);
+    scaled.push_back(s);
+  }
+  cv::Mat out;
+  cv::hconcat(scaled, out);
+  return out;
+}
+
 bool GraspVideo::add(const servo::GraspIteration& it, std::string* error) {
+  if (outside_) observe(it);
   if (!it.frame || it.frame->left.empty()) return true;
-  const cv::Mat img = draw(it, target_, camera_);
+  cv::Mat img = draw(it, target_, camera_);
+  if (outside_) img = sideBySide({img, externalPanel(), mapPanel()});
   if (!writer_.isOpened()) {
     for (const char* fcc : {"avc1", "mp4v", "MJPG"}) {
       try {

@@ -180,7 +180,8 @@ TEST(EnonGraspApp, TheLogIsARecordingThatPoseReplayReadsBack) {
   EXPECT_TRUE(poses.back().contains("truth"));
 }
 
-// --video FILE: the frames used, 640x480, one per frame the controller looked at.
+// --video FILE: the frames used, one per frame the controller looked at; on the simulator three
+// 640x480 panels side by side (head camera, external view, map).
 TEST(EnonGraspApp, TheVideoHasTheFramesUsed) {
   const fs::path dir = scratch("video");
   fs::create_directories(dir);
@@ -192,7 +193,7 @@ TEST(EnonGraspApp, TheVideoHasTheFramesUsed) {
   ASSERT_TRUE(v.isOpened());
   int frames = 0;
   for (cv::Mat f; v.read(f); ++frames) {
-    EXPECT_EQ(f.cols, 640);
+    EXPECT_EQ(f.cols, 3 * 640);
     EXPECT_EQ(f.rows, 480);
   }
   EXPECT_GT(frames, 10);

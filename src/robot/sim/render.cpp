@@ -544,9 +544,12 @@ cv::Mat renderView(const Intrinsics& cam, const std::vector<TexturedPlane>& plan
   return renderView(cam, planes, {}, background, opt);
 }
 
-cv::Mat renderView(const Intrinsics& cam, const std::vector<TexturedPlane>& planes,
-                   const std::vector<TexturedCylinder>& cylinders, const cv::Mat& background,
-                   const RenderOptions& opt) {
+namespace {
+
+// renderView's body; inv_depth (optional) receives the depth buffer of the ideal canvas.
+cv::Mat renderCanvas(const Intrinsics& cam, const std::vector<TexturedPlane>& planes,
+                     const std::vector<TexturedCylinder>& cylinders, const cv::Mat& background,
+                     const RenderOptions& opt, cv::Mat* inv_depth_out) {
   cam.check();
   opt.check();
   for (const auto& p : planes) checkPlane(p);
@@ -599,10 +602,26 @@ cv::Mat renderView(const Intrinsics& cam, const std::vector<TexturedPlane>& plan
       drawPlane(canvas, inv_depth, K, planes[it.index], opt);
   }
 
+  if (inv_depth_out) *inv_depth_out = inv_depth;
   if (!dmap) return canvas;
   cv::Mat out;
   cv::remap(canvas, out, dmap->map1, dmap->map2, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
   return out;
+}
+
+}  // namespace
+
+cv::Mat renderView(const Intrinsics& cam, const std::vector<TexturedPlane>& planes,
+                   const std::vector<TexturedCylinder>& cylinders, const cv::Mat& background,
+                   const RenderOptions& opt) {
+  return renderCanvas(cam, planes, cylinders, background, opt, nullptr);
+}
+
+cv::Mat renderViewWithDepth(const Intrinsics& cam, const std::vector<TexturedPlane>& planes,
+                            const std::vector<TexturedCylinder>& cylinders, const cv::Mat& background,
+                            const RenderOptions& opt, cv::Mat* inv_depth) {
+  refgrasp::check(!cam.hasDistortion(), "renderViewWithDepth", "needs a camera without lens distortion");
+  return renderCanvas(cam, planes, cylinders, background, opt, inv_depth);
 }
 
 }  // namespace refgrasp::sim

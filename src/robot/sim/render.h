@@ -68,6 +68,14 @@ cv::Mat renderView(const Intrinsics& cam, const std::vector<TexturedPlane>& plan
                    const std::vector<TexturedCylinder>& cylinders, const cv::Mat& background,
                    const RenderOptions& opt = {});
 
+/// renderView of a camera without lens distortion that also returns, in *inv_depth (CV_32F, the
+/// image's size), 1 / camera z (1/m) of the surface each pixel shows, 0 where the background
+/// shows: for drawing more over the image with a depth test. The image is the same bits as
+/// renderView's. Throws std::invalid_argument for a camera with distortion.
+cv::Mat renderViewWithDepth(const Intrinsics& cam, const std::vector<TexturedPlane>& planes,
+                            const std::vector<TexturedCylinder>& cylinders, const cv::Mat& background,
+                            const RenderOptions& opt, cv::Mat* inv_depth);
+
 /// Homography from level-0 texture pixels to ideal (undistorted) image pixels, x_img ~ H x_tex.
 Eigen::Matrix3d textureToImage(const Intrinsics& cam, const TexturedPlane& plane);
 
