@@ -314,6 +314,7 @@ std::unique_ptr<HomographyTracker> makeHomographyTracker(const detector::Detecto
   dense.max_corner_shift_px = options.align_max_corner_shift_px;
   dense.min_correlation = options.align_min_correlation;
   dense.robust = true;
+  dense.max_template_px = options.align_max_template_px;
   HomographyAligner align;
   if (options.align_to_reference)
     align = [&detector, id, dense](const cv::Mat& gray, const Intrinsics& cam, const Eigen::Matrix3d& H) {
