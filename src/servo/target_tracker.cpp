@@ -521,6 +521,7 @@ struct TargetTracker::Impl {
       s.cMo = k.cMo;
       if (k.h) {
         H = k.h->H;
+        s.H = H;
         s.eyes = detector::EyesUsed::kLeft;
         s.corners = k.h->corners;
       }
@@ -553,6 +554,7 @@ struct TargetTracker::Impl {
     if (s.mode == TrackMode::kLost) {
       s.cMo.reset();
       s.corners.reset();
+      s.H.reset();
       s.eyes = detector::EyesUsed::kNone;
       ++t.frames_since_pose;
       if (t.frames_since_pose > opt.prior_frames) {

@@ -91,6 +91,9 @@ struct TargetState {
   /// Pattern corners TL, TR, BR, BL in the (left) image: detected, projected from cMo, or (a
   /// tracked 2D-only object) under the tracked homography.
   std::optional<std::array<Eigen::Vector2d, 4>> corners;
+  /// mode track, a 2D-only object: the tracked homography (undistorted reference px ->
+  /// undistorted image px, as detector::Detection::H); detect: see `detection`.
+  std::optional<Eigen::Matrix3d> H;
   /// mode detect: the detection (best instance; the left eye's for stereo, found = false when
   /// only the right eye found it). Otherwise found = false.
   detector::Detection detection;

@@ -2,13 +2,21 @@
 // servo/target_tracker.h) on a rendered sequence with slow motion and changing light: confirmed
 // by two detections, then tracked with no detector run, its corners as close to the truth as the
 // single-frame detector's; --no-track detects every frame; the tracker alone loses a pattern
-// that left the view.
+// that left the view; pose_replay's report says "tracking": true and mode "track" with the
+// tracked homography.
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+#include <sstream>
 
 #include "detector/detector.h"
+#include "common/temp_dir.h"
 #include "servo/homography_tracker.h"
+#include "servo/replay.h"
+#include "servo/replay_report.h"
 #include "servo/target_tracker.h"
 #include "servo/two_d_sequence.h"
 
@@ -108,4 +116,55 @@ TEST(HomographyTracking, BadOptionsAndObjectsAreRefusedAtStartUp) {
   EXPECT_THROW(servo::TargetTracker(twoDDetector(), t), std::invalid_argument);
   const detector::ObjectModel can = detector::cylinderObject("can", rt::loadMedia(rt::kTwoDTexture), 0.05, 0.2, 0.2);
   EXPECT_THROW(servo::HomographyTracker(can, {}, nullptr), std::invalid_argument);
+}
+
+// What pose_replay writes for a 2D-only object: tracked frames are "track" with the tracked
+// homography and corners, no pose; summary.json says "tracking": true.
+TEST(PoseReplay, TwoDOnlyObjectIsTrackedAndReportedAsTrack) {
+  namespace fs = std::filesystem;
+  const rt::TrackingSequence& seq = shortSequence();
+  servo::ReplayOptions ro;
+  servo::PoseReplay replay(twoDDetector(), ro, servo::planarTrackerFactory(ro.pipeline.tracker, &twoDDetector()));
+  ASSERT_TRUE(replay.tracking());
+  const fs::path out = rt::tempDir("refgrasp_test_replay_2d") / "report";
+  fs::remove_all(out);
+  constexpr size_t kFrames = 12;
+  {
+    servo::ReplayReportOptions o;
+    o.input = "rendered sequence";
+    o.tracking = replay.tracking();
+    servo::ReplayReport report(out.string(), twoDDetector(), o);
+    std::string err;
+    for (size_t k = 0; k < kFrames; ++k) {
+      const servo::ReplayFrame r = replay.process(static_cast<int64_t>(k), seq.mono[k], seq.camera);
+      ASSERT_TRUE(report.add(r, seq.mono[k].image, seq.camera, &err)) << err;
+    }
+    ASSERT_TRUE(report.finish(&err)) << err;
+  }
+  std::ifstream in(out / "poses.jsonl");
+  std::string line, modes;
+  size_t k = 0;
+  for (; std::getline(in, line); ++k) {
+    const nlohmann::json j = nlohmann::json::parse(line);
+    const std::string mode = j["mode"];
+    modes += mode == "detect" ? 'D' : mode == "track" ? 'T' : '.';
+    EXPECT_TRUE(j["found"].get<bool>()) << k;
+    EXPECT_FALSE(j.contains("R")) << k;
+    ASSERT_EQ(j["homography"].size(), 9u) << k;
+    ASSERT_EQ(j["corners"].size(), 4u) << k;
+    const auto truth = rt::twoDTruthCorners(seq, k);
+    for (size_t i = 0; i < 4; ++i) {
+      EXPECT_NEAR(j["corners"][i][0].get<double>(), truth[i].x(), 0.3) << k;
+      EXPECT_NEAR(j["corners"][i][1].get<double>(), truth[i].y(), 0.3) << k;
+    }
+    if (mode == "track") EXPECT_GE(j["track"]["correlation"].get<double>(), 0.8) << k;
+  }
+  EXPECT_EQ(k, kFrames);
+  EXPECT_EQ(modes, "DDTTTTTTTTTT");
+  std::ifstream sj(out / "summary.json");
+  std::stringstream ss;
+  ss << sj.rdbuf();
+  const nlohmann::json summary = nlohmann::json::parse(ss.str());
+  EXPECT_TRUE(summary["tracking"].get<bool>());
+  EXPECT_EQ(summary["objects"][0]["modes"]["track"], 10);
 }
