@@ -40,17 +40,7 @@ inline TrackingSequence twoDSequence(int frames, int period, uint64_t seed) {
   spec.frames = frames;
   spec.seed = seed;
   const double cycles = static_cast<double>(frames) / period;
-  spec.path = [cycles](double t) {
-    const double a = 2 * M_PI * cycles * t;
-    ViewPoint v;
-    v.distance_m = 0.75 + 0.2 * std::sin(a);
-    v.tilt_rad = 0.35 * (0.5 + 0.5 * std::sin(0.5 * a));
-    v.tilt_dir_rad = 0.3 * a;
-    v.roll_rad = 0.25 * std::sin(0.7 * a);
-    v.look_x_m = 0.04 * std::sin(1.3 * a);
-    v.look_y_m = 0.03 * std::cos(0.9 * a);
-    return v;
-  };
+  spec.path = [cycles](double t) { return swayPath(t, cycles); };
   TrackingSequence s = renderTrackingSequence(spec);
   std::mt19937_64 rng(seed);
   for (size_t k = 0; k < s.mono.size(); ++k) {
