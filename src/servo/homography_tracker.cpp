@@ -245,7 +245,8 @@ HomographyStep HomographyTracker::Impl::track(const cv::Mat& gray, const Intrins
     const detector::HomographyAlignment a = align(gray, cam, *Hf);
     q.correlation = a.correlation;
     q.aligned_fraction = a.used_fraction;
-    q.aligned = a.ok && featureRms(cur, cam, a.H) <= opt.align_max_feature_rms_px;
+    const double rms = a.ok ? featureRms(cur, cam, a.H) : 0;
+    q.aligned = a.ok && rms <= opt.align_max_feature_rms_px;
     if (q.aligned && a.used_fraction < opt.min_aligned_fraction)
       return lose(s, "aligned fraction " + std::to_string(a.used_fraction) + " < " +
                          std::to_string(opt.min_aligned_fraction));
@@ -253,7 +254,10 @@ HomographyStep HomographyTracker::Impl::track(const cv::Mat& gray, const Intrins
       Hn = a.H;
       unaligned = 0;
     } else if (++unaligned >= opt.max_unaligned_frames) {
-      return lose(s, "not aligned with the reference (correlation " + std::to_string(a.correlation) + ")");
+      return lose(s, a.ok ? "the features disagree with the alignment (" + std::to_string(rms) + " px RMS > " +
+                                std::to_string(opt.align_max_feature_rms_px) + ")"
+                          : "not aligned with the reference (correlation " + std::to_string(a.correlation) +
+                                ", corner shift " + std::to_string(a.corner_shift_px) + " px)");
     }
   }
   H = Hn;
