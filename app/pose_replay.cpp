@@ -31,7 +31,8 @@ byte for byte (timings only in summary.json "timing_ms"). Detector options: --de
 FILE (every field: config/detector.yaml), --matcher and --pose override it.
 Tracking (the robot's pipeline, servo/target_tracker.h): a detection is confirmed by the next
 one, then the target is tracked frame to frame (KLT features on the object's surfaces, aligned
-with the reference image for a planar object); when the tracker loses it the frame is detected
+with the reference image for a planar object; a 2D-only object, without reference_pose, by its
+homography, aligned with the reference every frame); when the tracker loses it the frame is detected
 again, in the predicted region first, then in the whole frame. --no-track detects every frame.
 --input: a recording folder, a video file, an image folder (sorted; optional stamps.txt), a
 folder with left/ and right/ image folders (with --stereo), or any source spec:

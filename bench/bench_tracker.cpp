@@ -5,6 +5,9 @@
 // accuracy against the ground truth, frames followed before a loss), then the whole pipeline
 // per frame (tracking plus the detections it needs) with and without periodic re-detection,
 // against detection on every frame. Bar: tracking step >= 200 frames per second (median).
+// Then a 2D-only object (no reference pose: the homography tracker, servo/homography_tracker.h)
+// at 640x480 and 1280x720 on a slow sway: the tracking step and the pipeline per frame. Bar:
+// 2D-only tracking step >= 30 frames per second at 1280x720 on one core (thread CPU median).
 #include <opencv2/core.hpp>
 #include <cstdio>
 #include <string>
@@ -13,6 +16,7 @@
 #include "detector/detector.h"
 #include "robot/sim/synthetic_scene.h"
 #include "robot/sim/synthetic_sequence.h"
+#include "servo/homography_tracker.h"
 #include "servo/target_tracker.h"
 #include "servo/tracker.h"
 
@@ -37,6 +41,12 @@ void usage() {
       "every frame (--no-track): median, 95th percentile and max wall time, median thread CPU,\n"
       "detector calls.\n"
       "Bar: tracking step >= 200 frames per second (wall median).\n"
+      "Rows, 2D-only object (registered without reference pose: the homography tracker, KLT +\n"
+      "alignment with the reference every frame), at 640x480 (f 550 px) and 1280x720 (f 1100 px)\n"
+      "on a slow sway (0.55-0.95 m, tilt to 20 deg, roll): the tracking step started on frame 0's\n"
+      "detection (wall and thread CPU medians, fps, cpu fps, frames followed, corner error median /\n"
+      "90th percentile px) and the pipeline per frame (track, detect every frame).\n"
+      "Bar: 2D-only tracking step >= 30 fps at 1280x720 on one core (thread CPU median).\n"
       "Usage: bench_tracker [--frames N (default 120)] [--texture media/relative.png]\n"
       "                     [--threads N (default 1)] [--help]\n"
       "--threads N: OpenCV's thread pool size (cv::setNumThreads). With 1 everything runs on the\n"
@@ -65,6 +75,64 @@ double percentile(std::vector<double> v, double q) {
   if (v.empty()) return NAN;
   std::sort(v.begin(), v.end());
   return v[std::min(v.size() - 1, static_cast<size_t>(q * (v.size() - 1) + 0.5))];
+}
+
+/// The 2D-only rows at one resolution: the homography tracker's step, then the pipeline.
+void twoDRows(const std::string& texture, int frames, int width, int height, double f) {
+  testing::TrackingSequenceSpec spec;
+  spec.frames = frames;
+  spec.texture = texture;
+  spec.camera = Intrinsics::pinhole(width, height, f, 0.5 * (width - 1), 0.5 * (height - 1));
+  const double cycles = frames / 200.0;
+  spec.path = [cycles](double t) { return testing::swayPath(t, cycles); };
+  const testing::TrackingSequence seq = testing::renderTrackingSequence(spec);
+  const detector::ObjectModel truth_model = detector::textureObject("target", testing::loadMedia(texture), spec.width_m);
+  detector::Detector det;
+  det.addObject(detector::makeObjectModel("target", testing::loadMedia(texture), std::nullopt, std::nullopt));
+  auto cornerError = [&](const std::array<Eigen::Vector2d, 4>& c, size_t k) {
+    double e = 0;
+    for (size_t i = 0; i < 4; ++i)
+      e = std::max(e, (c[i] - seq.camera.project(seq.truth[k] * truth_model.target->corners_o[i])).norm());
+    return e;
+  };
+  Row row;
+  std::vector<double> err;
+  std::string lost;
+  const auto d0 = det.detect(seq.mono[0].image, seq.camera).find(0);
+  auto tracker = servo::makeHomographyTracker(det, 0);
+  servo::HomographyStep s;
+  if (d0) s = tracker->start(seq.mono[0].image, seq.camera, d0->H);
+  if (!s.ok) lost = d0 ? "not started: " + s.lost_reason : "not detected in frame 0";
+  for (size_t k = 1; k < seq.mono.size() && s.ok; ++k) {
+    row.time([&] { s = tracker->track(seq.mono[k].image, seq.camera); });
+    if (!s.ok) {
+      lost = "lost at frame " + std::to_string(k) + ": " + s.lost_reason;
+      break;
+    }
+    ++row.followed;
+    err.push_back(cornerError(s.corners, k));
+  }
+  const double wall = median(row.wall), cpu = median(row.cpu);
+  std::printf("%-34s %9.2f %9.2f %7.0f %7.0f %5d/%-3d %10.3f / %-9.3f\n",
+              (std::to_string(width) + "x" + std::to_string(height) + " tracking step").c_str(), wall, cpu,
+              1e3 / wall, 1e3 / cpu, row.followed, frames - 1, median(err), percentile(err, 0.9));
+  if (!lost.empty()) std::printf("%-34s %s\n", "", lost.c_str());
+  for (const bool track : {true, false}) {
+    servo::TargetTrackerOptions o;
+    o.track = track;
+    servo::TargetTracker pipeline(det, o);
+    Row p;
+    int tracked = 0;
+    for (size_t k = 0; k < seq.mono.size(); ++k) {
+      servo::TargetFrame fr;
+      p.time([&] { fr = pipeline.process(seq.mono[k], seq.camera); });
+      p.calls += fr.detector_calls;
+      tracked += fr.objects[0].mode == servo::TrackMode::kTrack;
+    }
+    std::printf("%-34s %9.2f %9.2f %7.0f %7.0f %9s %10s calls %d, tracked %d\n",
+                (std::string("  pipeline, ") + (track ? "track" : "detect every frame")).c_str(), median(p.wall),
+                median(p.cpu), 1e3 / median(p.wall), 1e3 / median(p.cpu), "", "", p.calls, tracked);
+  }
 }
 
 }  // namespace
@@ -161,6 +229,12 @@ int main(int argc, char** argv) try {
     std::printf("%-42s %9.2f %9.2f %9.2f %9.2f %7d\n", m.name, median(row.wall), percentile(row.wall, 0.95),
                 maxOf(row.wall), median(row.cpu), row.calls);
   }
+
+  std::printf("\n2D-only object (homography tracker), slow sway 0.55-0.95 m, %d frames\n", frames);
+  std::printf("%-34s %9s %9s %7s %7s %9s %22s\n", "", "wall ms", "cpu ms", "fps", "cpu fps", "followed",
+              "corner px median/p90");
+  twoDRows(texture, frames, 640, 480, 550);
+  twoDRows(texture, frames, 1280, 720, 1100);
   return 0;
 }
 catch (const std::exception& e) {  // a missing or unreadable input: one line, not an abort

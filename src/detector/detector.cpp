@@ -455,6 +455,31 @@ PoseAlignment Detector::alignPose(const cv::Mat& image, const Intrinsics& camera
   return out;
 }
 
+HomographyAlignment Detector::alignHomography(const cv::Mat& image, const Intrinsics& camera, int object,
+                                              const Eigen::Matrix3d& H, const DenseRefineOptions* dense) const {
+  HomographyAlignment out;
+  out.H = H;
+  try {
+    if (object < 0 || object >= objectCount() || !H.allFinite()) return out;
+    const RegisteredObject& obj = objects_[static_cast<size_t>(object)];
+    if (obj.model.isMultiView() || obj.cylinder_model || !obj.dense_usable || obj.pyramid.empty() ||
+        !validateImage(image, camera).empty())
+      return out;
+    const DenseRefineResult dr = refineDense(obj, H, toGray(image), camera, dense ? *dense : opt_.dense);
+    out.correlation = dr.correlation;
+    out.corner_shift_px = dr.corner_shift_px;
+    out.used_fraction = 1 - dr.masked_fraction;
+    if (!dr.ok || !dr.H.allFinite()) return out;
+    out.H = dr.H;
+    for (int i = 0; i < 4; ++i) out.corners[i] = distortPixel(camera, applyHomography(dr.H, obj.corners_und_px[i]));
+    out.ok = true;
+  } catch (...) {  // OpenCV, out of memory: not aligned
+    out.ok = false;
+    out.H = H;
+  }
+  return out;
+}
+
 StereoDetectionResult Detector::detectStereo(const cv::Mat& left, const cv::Mat& right,
                                              const StereoRig& rig, const FrameStamp& frame) const {
   StereoDetectionResult out;

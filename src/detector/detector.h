@@ -195,6 +195,17 @@ struct PoseAlignment {
   double used_fraction = 1;
 };
 
+/// Photometric alignment of a homography (Detector::alignHomography).
+struct HomographyAlignment {
+  bool ok = false;
+  /// aligned H: undistorted reference px -> undistorted scene px (x_s ~ H x_r); the given H when !ok
+  Eigen::Matrix3d H = Eigen::Matrix3d::Identity();
+  std::array<Eigen::Vector2d, 4> corners{};  ///< ok: pattern corners TL, TR, BR, BL, image px
+  double correlation = 0;      ///< final ECC correlation coefficient
+  double corner_shift_px = 0;  ///< largest pattern corner move, aligned vs given H
+  double used_fraction = 1;    ///< as PoseAlignment::used_fraction
+};
+
 class Detector {
  public:
   /// Throws std::invalid_argument when opt.check() fails.
@@ -230,6 +241,16 @@ class Detector {
   /// dense: the refinement's options (nullptr: options().dense).
   PoseAlignment alignPose(const cv::Mat& image, const Intrinsics& camera, int object,
                           const Pose& cMo, const DenseRefineOptions* dense = nullptr) const;
+
+  /// Aligns the object's reference with `image` starting from H (undistorted reference px ->
+  /// undistorted scene px, e.g. a tracker's): the same dense ECC refinement as alignPose and the
+  /// detection of a 2D-only object, for any object with a single planar reference (2D-only or
+  /// planar with a pose). ok = false (never a throw) when the object has no usable reference
+  /// pyramid (several-view, cylinder, distorted reference camera, inexact region), the image is
+  /// unusable, or ECC fails, moves a corner more than dense.max_corner_shift_px or ends below
+  /// dense.min_correlation. dense: nullptr: options().dense.
+  HomographyAlignment alignHomography(const cv::Mat& image, const Intrinsics& camera, int object,
+                                      const Eigen::Matrix3d& H, const DenseRefineOptions* dense = nullptr) const;
 
   /// Detects in each eye independently (each with its own intrinsics) and fuses the best
   /// instance of every object (fuseStereo). Poses in the LEFT camera frame.

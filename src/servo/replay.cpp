@@ -39,6 +39,7 @@ ReplayFrame PoseReplay::convert(int64_t frame, const TargetFrame& t,
     o.detection = s.detection;
     o.cMo = s.cMo;
     o.corners = s.corners;
+    o.H = s.H;
     if (stereo && t.ok) o.eyes = detector::eyesUsedName(s.eyes);
     o.quality = s.quality;
     for (const robot::ObjectTruth& g : truth)

@@ -49,8 +49,11 @@ struct ObjectFrame {
   /// right eye found it); track/lost: found = false.
   detector::Detection detection;
   std::optional<Pose> cMo;  ///< detect and track (3D objects): the pose; lost: empty
-  /// Pattern corners TL, TR, BR, BL in the (left) image: detected, or projected from cMo.
+  /// Pattern corners TL, TR, BR, BL in the (left) image: detected, projected from cMo, or under
+  /// the tracked homography (2D-only).
   std::optional<std::array<Eigen::Vector2d, 4>> corners;
+  /// mode track, a 2D-only object: the tracked homography (TargetState::H)
+  std::optional<Eigen::Matrix3d> H;
   std::string eyes;         ///< stereo: "both", "left", "right" or "none" (detect and track)
   TrackQuality quality;     ///< mode track: the (left) tracker's numbers
   std::optional<Pose> truth_cMo;  ///< ground truth when the frame carries it

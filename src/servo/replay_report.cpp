@@ -27,12 +27,14 @@ constexpr double kDeg = 180.0 / M_PI;
 
 // detect_object's detection fields (detector/detection_json.h): "found", then "homography",
 // "corners", "R", "t", "inliers" as detected; a tracked pose (or a fused stereo pose) replaces R
-// and t in place, corners projected from it stand in when there is no detection in this image.
+// and t in place, corners projected from it stand in when there is no detection in this image; a
+// tracked 2D-only object gives its tracked homography and corners.
 void detectionFields(const ObjectFrame& o, Json* j) {
   if (o.detection.found) {
     *j = detector::detectionJson(o.detection, *j);
   } else {
     (*j)["found"] = o.mode != TrackMode::kLost;
+    if (o.H) (*j)["homography"] = matrixJson(*o.H / (*o.H)(2, 2));
     if (o.corners) {
       (*j)["corners"] = Json::array();
       for (const auto& c : *o.corners) (*j)["corners"].push_back({c.x(), c.y()});
@@ -293,6 +295,7 @@ std::vector<std::string> ReplayReport::jsonLines(const ReplayFrame& r, bool tag_
     if (o.mode == TrackMode::kTrack)
       j["track"] = {{"features", o.quality.features},
                     {"projection_error_px", o.quality.projection_error_px}};
+    if (o.mode == TrackMode::kTrack && o.H) j["track"]["correlation"] = o.quality.correlation;
     if (o.truth_cMo) {
       j["truth"] = poseJson(*o.truth_cMo);
       if (o.cMo)

@@ -5,6 +5,7 @@
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
+#include "servo/homography_tracker.h"
 #include "servo/surface_model.h"
 
 namespace refgrasp::servo {
@@ -34,6 +35,8 @@ void TargetTrackerOptions::check() const {
   need(confirm_detections >= 1, "confirm_detections", "must be >= 1");
   need(std::isfinite(confirm_max_translation_fraction) && confirm_max_translation_fraction > 0,
        "confirm_max_translation_fraction", "must be > 0");
+  need(std::isfinite(confirm_max_corner_fraction) && confirm_max_corner_fraction > 0,
+       "confirm_max_corner_fraction", "must be > 0");
   need(std::isfinite(confirm_max_rotation_rad) && confirm_max_rotation_rad > 0,
        "confirm_max_rotation_rad", "must be > 0");
   need(confirm_max_frames >= confirm_detections, "confirm_max_frames", "must be >= confirm_detections");
@@ -98,12 +101,44 @@ struct EyesDetection {
   detector::EyesUsed eyes = detector::EyesUsed::kNone;
 };
 
+/// Where to detect an object: around a predicted pose (left frame), in a region of the left
+/// image (a 2D-only object's predicted corners; the right eye searches its whole frame), or,
+/// with neither, in the whole frame.
+struct Search {
+  std::optional<Pose> cMo;
+  std::optional<cv::Rect> roi;
+  bool prior() const { return cMo.has_value() || roi.has_value(); }
+};
+
+/// The bounding box of corners grown by `margin` x its larger side on each side, in the image.
+std::optional<cv::Rect> cornerRegion(const std::array<Eigen::Vector2d, 4>& c, double margin, const Intrinsics& cam) {
+  Eigen::Vector2d lo = c[0], hi = c[0];
+  for (const auto& p : c) {
+    if (!p.allFinite()) return std::nullopt;
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const double m = margin * (hi - lo).maxCoeff();
+  const cv::Rect r(cv::Point(static_cast<int>(std::floor(std::max(0.0, lo.x() - m))),
+                             static_cast<int>(std::floor(std::max(0.0, lo.y() - m)))),
+                   cv::Point(static_cast<int>(std::ceil(std::min<double>(cam.width, hi.x() + m))),
+                             static_cast<int>(std::ceil(std::min<double>(cam.height, hi.y() + m)))));
+  if (r.width < 16 || r.height < 16) return std::nullopt;
+  return r;
+}
+
 }  // namespace
 
 struct TargetTracker::Impl {
   struct Target {
     std::unique_ptr<FrameTracker> tracker[2];  ///< left (or mono), right
     bool active[2] = {false, false};
+    /// 2D-only objects: the homography tracker (left or only eye), and its state: the last H
+    /// and its change over the last frame (H_t H_{t-1}^-1), undistorted image px.
+    std::unique_ptr<HomographyTracker> htracker;
+    bool h_active = false;
+    std::optional<Eigen::Matrix3d> last_H, velocity_H, disputed_H;
+    std::array<Eigen::Vector2d, 4> corners_ref{};  ///< undistorted reference px
     bool confirmed = false;          ///< internal: survives a short loss (prior_frames)
     int agree = 0;                   ///< consecutive agreeing detections
     int unconfirmed_frames = 0;      ///< frames since the hypothesis appeared, while unconfirmed
@@ -117,7 +152,12 @@ struct TargetTracker::Impl {
     std::optional<Pose> disputed;
     int disputes = 0, disputed_agree = 0;
     bool anyActive() const { return active[0] || active[1]; }
-    void stop() { active[0] = active[1] = false; }
+    void stop() { active[0] = active[1] = h_active = false; }
+    void clearDispute() {
+      disputed.reset();
+      disputed_H.reset();
+      disputes = disputed_agree = 0;
+    }
   };
 
   Impl(const detector::Detector& d, const TargetTrackerOptions& o, TrackerFactory f)
@@ -127,7 +167,11 @@ struct TargetTracker::Impl {
     for (int id = 0; id < det.objectCount(); ++id) {
       Target t;
       // Only objects whose detections give a pose can be tracked (the tracker starts from it).
-      if (f && opt.track && det.object(id).hasPose()) t.tracker[0] = f(det.object(id));
+      const detector::ObjectModel& m = det.object(id);
+      if (f && opt.track && m.hasPose()) t.tracker[0] = f(m);
+      // An object without metric geometry is followed by its homography.
+      if (opt.track && !m.hasPose()) t.htracker = makeHomographyTracker(det, id, opt.tracker);
+      for (size_t i = 0; i < 4; ++i) t.corners_ref[i] = m.camera ? m.camera->undistortPixel(m.corners_px[i]) : m.corners_px[i];
       targets.push_back(std::move(t));
     }
     factory = std::move(f);
@@ -143,7 +187,7 @@ struct TargetTracker::Impl {
 
   bool tracking() const {
     for (const Target& t : targets)
-      if (t.tracker[0]) return true;
+      if (t.tracker[0] || t.htracker) return true;
     return false;
   }
 
@@ -172,6 +216,7 @@ struct TargetTracker::Impl {
       t.confirmed = false;
       t.agree = 0;
       t.velocity.reset();
+      t.velocity_H.reset();
     }
     return r;
   }
@@ -185,6 +230,27 @@ struct TargetTracker::Impl {
     return t.last_cMo;
   }
 
+  /// 2D-only objects: H expected in this frame (the last motion repeated, else the last H).
+  std::optional<Eigen::Matrix3d> predictH(const Target& t) const {
+    if (!t.last_H) return std::nullopt;
+    if (opt.constant_velocity && t.velocity_H && t.frames_since_pose == 0) return Eigen::Matrix3d(*t.velocity_H * *t.last_H);
+    return t.last_H;
+  }
+
+  /// 2D-only objects: the pattern corners under a and b (undistorted px) differ by at most
+  /// confirm_max_corner_fraction of the pattern's diagonal.
+  bool agreesH(const Target& t, const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) const {
+    std::array<Eigen::Vector2d, 4> ca, cb;
+    double gap = 0;
+    for (size_t i = 0; i < 4; ++i) {
+      ca[i] = (a * t.corners_ref[i].homogeneous()).hnormalized();
+      cb[i] = (b * t.corners_ref[i].homogeneous()).hnormalized();
+      gap = std::max(gap, (ca[i] - cb[i]).norm());
+    }
+    const double diag = 0.5 * ((ca[2] - ca[0]).norm() + (ca[3] - ca[1]).norm());
+    return std::isfinite(gap) && gap <= opt.confirm_max_corner_fraction * std::max(diag, 1.0);
+  }
+
   bool agrees(const Pose& a, const Pose& b) const {
     const double dist = std::max(1e-3, 0.5 * (a.t.norm() + b.t.norm()));
     return translationError(a, b) <= opt.confirm_max_translation_fraction * dist &&
@@ -194,13 +260,13 @@ struct TargetTracker::Impl {
   /// Detects the objects with a non-empty request in every eye: a prior pose (left frame) or the
   /// whole frame. Fills out[id]; false + error when the detector rejects the frame.
   bool detectObjects(const std::vector<Eye>& eyes, const FrameStamp& stamp,
-                     const std::vector<std::optional<std::optional<Pose>>>& request,
+                     const std::vector<std::optional<Search>>& request,
                      std::vector<EyesDetection>* out, std::string* error) const {
     const int n = det.objectCount();
     bool all_whole = true, any = false;
     for (const auto& r : request) {
       any = any || r.has_value();
-      all_whole = all_whole && r.has_value() && !r->has_value();
+      all_whole = all_whole && r.has_value() && !r->prior();
     }
     if (!any) return true;
     for (size_t e = 0; e < eyes.size(); ++e) {
@@ -212,10 +278,12 @@ struct TargetTracker::Impl {
           if (!r) continue;
           detector::ObjectPrior p;
           p.object = id;
-          if (r->has_value()) {
-            p.cMo = eyes[e].lMe.inverse() * **r;
+          if (r->cMo) {
+            p.cMo = eyes[e].lMe.inverse() * *r->cMo;
             p.roi_margin = opt.prior_roi_margin;
             p.scale_margin = opt.prior_scale_margin;
+          } else if (r->roi && e == 0) {
+            p.roi = *r->roi;
           } else {
             p.roi = cv::Rect(0, 0, eyes[e].camera.width, eyes[e].camera.height);
           }
@@ -306,76 +374,238 @@ struct TargetTracker::Impl {
   // confirm_detections + 1 of them in a row agreeing with each other replace the track (it had
   // drifted): one more than a new target needs, since the track is evidence too. After
   // kMaxDisputes in a row without that, a full period passes. True when the track overrules the
-  // detection lMo; *settled when the detections replace the track.
-  bool overrules(Target* t, const Pose& tracked, const std::optional<Pose>& lMo, bool* settled) const {
+  // detection `found`; *settled when the detections replace the track. T: a pose (disputed:
+  // &t->disputed) or a 2D-only object's homography (&t->disputed_H); agree compares two.
+  template <class T, class Agree>
+  bool overrules(Target* t, const T& tracked, const std::optional<T>& found, std::optional<T>* disputed,
+                 Agree agree, bool* settled) const {
     constexpr int kMaxDisputes = 5;
     *settled = false;
     bool overruled = false;
-    if (t->confirmed && lMo && !agrees(*lMo, tracked)) {
-      t->disputed_agree = t->disputed && agrees(*lMo, *t->disputed) ? t->disputed_agree + 1 : 1;
-      t->disputed = lMo;
+    if (t->confirmed && found && !agree(*found, tracked)) {
+      t->disputed_agree = *disputed && agree(*found, **disputed) ? t->disputed_agree + 1 : 1;
+      *disputed = found;
       *settled = t->disputed_agree >= opt.confirm_detections + 1;
       if (!*settled) {
         overruled = true;
         const bool again = ++t->disputes < kMaxDisputes;
         t->frames_since_detection = again ? opt.redetect_every_frames - 2 : -1;
-        if (!again) t->disputed.reset(), t->disputes = t->disputed_agree = 0;
+        if (!again) t->clearDispute();
       }
     }
-    if (!overruled) t->disputed.reset(), t->disputes = t->disputed_agree = 0;
+    if (!overruled) t->clearDispute();
     return overruled;
+  }
+
+  /// A target's prediction and tracking in this frame: a pose, or a 2D-only object's homography.
+  struct Followed {
+    std::optional<Pose> pred, cMo;
+    std::optional<Eigen::Matrix3d> predH;
+    std::optional<HomographyStep> h;  ///< ok steps only
+    bool any() const { return cMo.has_value() || h.has_value(); }
+  };
+
+  /// 1. Tracks a target from its prediction (stopped when every eye lost it).
+  Followed follow(Target* t, const std::vector<Eye>& eyes, const robot::CaptureState& capture, TargetState* s) {
+    Followed k;
+    if (t->htracker) {
+      k.predH = predictH(*t);
+      if (t->h_active && k.predH) {
+        HomographyStep step = t->htracker->track(eyes[0].gray, eyes[0].camera, k.predH);
+        s->quality = step.quality;
+        if (step.ok) k.h = std::move(step);
+        else s->lost_reason = step.lost_reason;
+      }
+    } else {
+      k.pred = predict(*t, capture);
+      if (t->anyActive() && k.pred) k.cMo = trackEyes(t, eyes, *k.pred, s);
+    }
+    if (!k.any()) t->stop();
+    return k;
+  }
+
+  /// 2. What to detect: nothing (tracked, confirmed, no re-detection due), the predicted region,
+  /// or the whole frame.
+  std::optional<Search> searchFor(const Target& t, const Followed& k, const Intrinsics& left) const {
+    const bool due = opt.redetect_every_frames > 0 && t.frames_since_detection + 1 >= opt.redetect_every_frames;
+    const bool recent = t.frames_since_pose < opt.prior_frames;
+    Search s;
+    if (t.htracker) {
+      if (k.h && t.confirmed && !due) return std::nullopt;
+      if (k.h) s.roi = cornerRegion(k.h->corners, opt.prior_roi_margin, left);
+      else if (k.predH && recent) s.roi = cornerRegion(cornersUnderH(*k.predH, t.corners_ref, left), opt.prior_roi_margin, left);
+      return s;
+    }
+    if (!t.tracker[0]) return s;  // detect-only: whole frame
+    if (k.cMo && t.confirmed && !due) return std::nullopt;
+    if (k.cMo) s.cMo = k.cMo;
+    else if (k.pred && recent) s.cMo = k.pred;
+    return s;
+  }
+
+  /// Whether the detection found the object (a pose, or a 2D-only object seen by an eye).
+  bool detected(int id, const EyesDetection& d) const {
+    return d.eyes != detector::EyesUsed::kNone && (d.lMo.has_value() || !det.object(id).hasPose());
+  }
+
+  /// 3. Whether a detection that the track did not overrule agrees with the target's previous
+  /// estimate brought to this frame: tracked, or predicted (by the camera motion, or by the last
+  /// motion, or unmoved: a sudden stop is no disagreement).
+  bool agreesWithPrevious(const Target& t, const EyesDetection& d, const Followed& k,
+                          const robot::CaptureState& capture) const {
+    const bool recent = t.frames_since_pose <= opt.prior_frames;
+    if (t.htracker) {
+      if (!d.eye[0].found) return false;
+      const Eigen::Matrix3d& H = d.eye[0].H;
+      if (k.h) return agreesH(t, H, k.h->H);
+      return t.last_H && recent && ((k.predH && agreesH(t, H, *k.predH)) || agreesH(t, H, *t.last_H));
+    }
+    if (!d.lMo) return false;
+    if (k.cMo) return agrees(*d.lMo, *k.cMo);
+    if (!t.last_cMo || !recent) return false;
+    const bool camera_motion_known = t.last_capture.bMc && capture.bMc;
+    return (k.pred && agrees(*d.lMo, *k.pred)) || (!camera_motion_known && agrees(*d.lMo, *t.last_cMo));
+  }
+
+  /// 3. Whether the confirmed track overrules this detection (the dispute rule, overrules()).
+  bool trackOverrules(Target* t, const EyesDetection& d, const Followed& k, bool* settled) {
+    *settled = false;
+    if (k.cMo)
+      return overrules(t, *k.cMo, d.lMo, &t->disputed, [this](const Pose& a, const Pose& b) { return agrees(a, b); },
+                       settled);
+    if (k.h) {
+      const std::optional<Eigen::Matrix3d> H = d.eye[0].found ? std::optional<Eigen::Matrix3d>(d.eye[0].H) : std::nullopt;
+      return overrules(t, k.h->H, H, &t->disputed_H,
+                       [this, t](const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) { return agreesH(*t, a, b); },
+                       settled);
+    }
+    t->clearDispute();
+    return false;
+  }
+
+  /// 3. The mode of a target this frame from its detection and tracking.
+  void decide(int id, Target* tp, TargetState* sp, const EyesDetection& d, const Followed& k,
+              const std::vector<Eye>& eyes, const robot::CaptureState& capture) {
+    Target& t = *tp;
+    TargetState& s = *sp;
+    s.detector_stats = d.stats;
+    if (d.eye[0].found) s.detector_best = d.eye[0];
+    std::optional<Eigen::Matrix3d> H;  // 2D-only: this frame's homography (left eye)
+    bool settled = false, overruled = false;
+    if (detected(id, d) && k.any()) overruled = trackOverrules(&t, d, k, &settled);
+    else t.clearDispute();
+    if (detected(id, d) && !overruled) {
+      const bool agree = settled || agreesWithPrevious(t, d, k, capture);
+      if (agree) {
+        ++t.agree;
+      } else {
+        t.agree = 1;
+        t.confirmed = false;
+        t.unconfirmed_frames = 0;
+      }
+      if (t.agree >= opt.confirm_detections) t.confirmed = true;
+      s.mode = TrackMode::kDetect;
+      s.cMo = d.lMo;
+      s.eyes = d.eyes;
+      s.detection = d.eye[0].found ? d.eye[0] : s.detection;
+      s.quality = TrackQuality();
+      s.quality_right = TrackQuality();
+      t.frames_since_detection = 0;
+      if (t.tracker[0] && d.lMo) startTrackers(&t, eyes, *d.lMo);
+      if (t.htracker && d.eye[0].found) {
+        H = d.eye[0].H;
+        t.h_active = t.htracker->start(eyes[0].gray, eyes[0].camera, *H).ok;
+      }
+    } else if (k.any()) {
+      s.mode = TrackMode::kTrack;
+      s.cMo = k.cMo;
+      if (k.h) {
+        H = k.h->H;
+        s.H = H;
+        s.eyes = detector::EyesUsed::kLeft;
+        s.corners = k.h->corners;
+      }
+      ++t.frames_since_detection;
+    } else {
+      s.mode = TrackMode::kLost;
+      ++t.frames_since_detection;
+    }
+    if (!t.confirmed && s.mode != TrackMode::kLost && ++t.unconfirmed_frames > opt.confirm_max_frames) {
+      // A hypothesis that no detection confirmed in time is dropped.
+      s.mode = TrackMode::kLost;
+      s.lost_reason = "not confirmed";
+      t.stop();
+      t.agree = 0;
+      t.unconfirmed_frames = 0;
+    }
+    remember(&t, &s, H, capture);
+    if (s.mode == TrackMode::kDetect && s.detection.found)
+      s.corners = s.detection.corners;
+    else if (s.cMo)
+      s.corners = projectPattern(det.object(id), *s.cMo, eyes[0].camera);
+  }
+
+  /// The target's memory after this frame's mode: the last estimate and motion, the frames
+  /// since a pose, the confirmation dropped after a loss longer than prior_frames.
+  void remember(Target* tp, TargetState* sp, const std::optional<Eigen::Matrix3d>& H,
+                const robot::CaptureState& capture) const {
+    Target& t = *tp;
+    TargetState& s = *sp;
+    if (s.mode == TrackMode::kLost) {
+      s.cMo.reset();
+      s.corners.reset();
+      s.H.reset();
+      s.eyes = detector::EyesUsed::kNone;
+      ++t.frames_since_pose;
+      if (t.frames_since_pose > opt.prior_frames) {
+        t.confirmed = false;
+        t.agree = 0;
+        t.velocity.reset();
+        t.velocity_H.reset();
+      }
+    } else {
+      if (s.cMo && t.last_cMo && t.frames_since_pose == 0) t.velocity = *s.cMo * t.last_cMo->inverse();
+      else t.velocity.reset();
+      if (s.cMo) {
+        t.last_cMo = s.cMo;
+        t.last_capture = capture;
+      }
+      if (H && t.last_H && t.frames_since_pose == 0) t.velocity_H = Eigen::Matrix3d(*H * t.last_H->inverse());
+      else t.velocity_H.reset();
+      if (H) t.last_H = H;
+      t.frames_since_pose = 0;
+    }
+    s.confirmed = t.confirmed && s.mode != TrackMode::kLost;
+    s.agreeing_detections = s.mode == TrackMode::kLost ? 0 : t.agree;
   }
 
   TargetFrame run(const std::vector<Eye>& eyes, const FrameStamp& stamp,
                   const robot::CaptureState& capture, const std::vector<robot::ObjectTruth>&) {
     TargetFrame r = begin(stamp, capture);
     if (eyes.size() == 2) makeRightTrackers();
-    const int n = det.objectCount();
-    std::vector<std::optional<Pose>> pred(static_cast<size_t>(n));
-    std::vector<std::optional<Pose>> tracked(static_cast<size_t>(n));
-    // 1. Track.
-    for (int id = 0; id < n; ++id) {
-      Target& t = targets[static_cast<size_t>(id)];
-      TargetState& s = r.objects[static_cast<size_t>(id)];
-      pred[static_cast<size_t>(id)] = predict(t, capture);
-      if (t.anyActive() && pred[static_cast<size_t>(id)])
-        tracked[static_cast<size_t>(id)] = trackEyes(&t, eyes, *pred[static_cast<size_t>(id)], &s);
-      if (!tracked[static_cast<size_t>(id)]) t.stop();
-    }
-    // 2. What to detect: nothing (tracked, confirmed), the predicted region, or the whole frame.
-    std::vector<std::optional<std::optional<Pose>>> request(static_cast<size_t>(n));
-    for (int id = 0; id < n; ++id) {
-      const Target& t = targets[static_cast<size_t>(id)];
-      const auto& tr = tracked[static_cast<size_t>(id)];
-      if (!t.tracker[0]) {
-        request[static_cast<size_t>(id)] = std::optional<Pose>();  // detect-only: whole frame
-      } else if (tr) {
-        const bool due = opt.redetect_every_frames > 0 && t.frames_since_detection + 1 >= opt.redetect_every_frames;
-        if (!t.confirmed || due) request[static_cast<size_t>(id)] = tr;
-      } else if (pred[static_cast<size_t>(id)] && t.frames_since_pose < opt.prior_frames) {
-        request[static_cast<size_t>(id)] = pred[static_cast<size_t>(id)];
-      } else {
-        request[static_cast<size_t>(id)] = std::optional<Pose>();
-      }
-      if (request[static_cast<size_t>(id)])
-        r.objects[static_cast<size_t>(id)].searched =
-            request[static_cast<size_t>(id)]->has_value() ? SearchScope::kPrior : SearchScope::kWholeFrame;
-    }
-    std::vector<EyesDetection> found(static_cast<size_t>(n));
-    std::string error;
+    const size_t n = static_cast<size_t>(det.objectCount());
+    std::vector<Followed> followed(n);
+    std::vector<std::optional<Search>> request(n);
     bool any = false;
-    for (const auto& q : request) any = any || q.has_value();
+    for (size_t id = 0; id < n; ++id) {
+      followed[id] = follow(&targets[id], eyes, capture, &r.objects[id]);
+      request[id] = searchFor(targets[id], followed[id], eyes[0].camera);
+      if (request[id]) r.objects[id].searched = request[id]->prior() ? SearchScope::kPrior : SearchScope::kWholeFrame;
+      any = any || request[id].has_value();
+    }
+    std::vector<EyesDetection> found(n);
+    std::string error;
     if (any) {
       ++r.detector_calls;
       if (!detectObjects(eyes, stamp, request, &found, &error)) return failed(stamp, capture, error);
       // A prior search that failed for a target the tracker lost: the whole frame now.
-      std::vector<std::optional<std::optional<Pose>>> again(static_cast<size_t>(n));
+      std::vector<std::optional<Search>> again(n);
       bool retry = false;
-      for (int id = 0; id < n; ++id) {
-        const auto& q = request[static_cast<size_t>(id)];
-        if (q && q->has_value() && !tracked[static_cast<size_t>(id)] && !found[static_cast<size_t>(id)].lMo) {
-          again[static_cast<size_t>(id)] = std::optional<Pose>();
-          r.objects[static_cast<size_t>(id)].searched = SearchScope::kWholeFrame;
+      for (size_t id = 0; id < n; ++id) {
+        const auto& q = request[id];
+        if (q && q->prior() && !followed[id].any() && !detected(static_cast<int>(id), found[id])) {
+          again[id] = Search();
+          r.objects[id].searched = SearchScope::kWholeFrame;
           retry = true;
         }
       }
@@ -384,92 +614,8 @@ struct TargetTracker::Impl {
         if (!detectObjects(eyes, stamp, again, &found, &error)) return failed(stamp, capture, error);
       }
     }
-    // 3. Decide per target.
-    for (int id = 0; id < n; ++id) {
-      Target& t = targets[static_cast<size_t>(id)];
-      TargetState& s = r.objects[static_cast<size_t>(id)];
-      const EyesDetection& d = found[static_cast<size_t>(id)];
-      const auto& tr = tracked[static_cast<size_t>(id)];
-      const detector::ObjectModel& model = det.object(id);
-      s.detector_stats = d.stats;
-      if (d.eye[0].found) s.detector_best = d.eye[0];
-      const bool detected = d.eyes != detector::EyesUsed::kNone &&
-                            (d.lMo.has_value() || !model.hasPose());
-      bool settled = false, overruled = false;
-      if (detected && tr)
-        overruled = overrules(&t, *tr, d.lMo, &settled);
-      else
-        t.disputed.reset(), t.disputes = t.disputed_agree = 0;
-      if (detected && !overruled) {
-        // Agreement with the previous pose brought to this frame: tracked, or predicted (by the
-        // camera motion, or by the last motion, or unmoved: a sudden stop is no disagreement).
-        bool agree = settled;
-        if (!settled && d.lMo && tr) {
-          agree = agrees(*d.lMo, *tr);
-        } else if (!settled && d.lMo && t.last_cMo && t.frames_since_pose <= opt.prior_frames) {
-          const std::optional<Pose>& p = pred[static_cast<size_t>(id)];
-          const bool camera_motion_known = t.last_capture.bMc && capture.bMc;
-          agree = (p && agrees(*d.lMo, *p)) || (!camera_motion_known && agrees(*d.lMo, *t.last_cMo));
-        }
-        if (agree) {
-          ++t.agree;
-        } else {
-          t.agree = 1;
-          t.confirmed = false;
-          t.unconfirmed_frames = 0;
-        }
-        if (t.agree >= opt.confirm_detections) t.confirmed = true;
-        s.mode = TrackMode::kDetect;
-        s.cMo = d.lMo;
-        s.eyes = d.eyes;
-        s.detection = d.eye[0].found ? d.eye[0] : s.detection;
-        s.quality = TrackQuality();
-        s.quality_right = TrackQuality();
-        t.frames_since_detection = 0;
-        if (t.tracker[0] && d.lMo) startTrackers(&t, eyes, *d.lMo);
-      } else if (tr) {
-        s.mode = TrackMode::kTrack;
-        s.cMo = tr;
-        ++t.frames_since_detection;
-      } else {
-        s.mode = TrackMode::kLost;
-        s.eyes = detector::EyesUsed::kNone;
-        ++t.frames_since_detection;
-      }
-      if (!t.confirmed && s.mode != TrackMode::kLost && ++t.unconfirmed_frames > opt.confirm_max_frames) {
-        // A hypothesis that no detection confirmed in time is dropped.
-        s.mode = TrackMode::kLost;
-        s.cMo.reset();
-        s.lost_reason = "not confirmed";
-        t.stop();
-        t.agree = 0;
-        t.unconfirmed_frames = 0;
-      }
-      if (s.mode == TrackMode::kLost) {
-        s.cMo.reset();
-        s.eyes = detector::EyesUsed::kNone;
-        ++t.frames_since_pose;
-        if (t.frames_since_pose > opt.prior_frames) {
-          t.confirmed = false;
-          t.agree = 0;
-          t.velocity.reset();
-        }
-      } else {
-        if (s.cMo && t.last_cMo && t.frames_since_pose == 0) t.velocity = *s.cMo * t.last_cMo->inverse();
-        else t.velocity.reset();
-        if (s.cMo) {
-          t.last_cMo = s.cMo;
-          t.last_capture = capture;
-        }
-        t.frames_since_pose = 0;
-      }
-      s.confirmed = t.confirmed && s.mode != TrackMode::kLost;
-      s.agreeing_detections = s.mode == TrackMode::kLost ? 0 : t.agree;
-      if (s.mode == TrackMode::kDetect && s.detection.found)
-        s.corners = s.detection.corners;
-      else if (s.cMo)
-        s.corners = projectPattern(model, *s.cMo, eyes[0].camera);
-    }
+    for (size_t id = 0; id < n; ++id)
+      decide(static_cast<int>(id), &targets[id], &r.objects[id], found[id], followed[id], eyes, capture);
     return r;
   }
 

@@ -11,7 +11,10 @@
 //            predicted region). An unconfirmed target must never move the robot.
 //   track    between detections a FrameTracker (servo/tracker.h) follows each target from the
 //            previous frame, starting from the pose predicted by the camera motion when known
-//            (else the tracker's own prediction);
+//            (else the tracker's own prediction); an object without metric geometry (2D-only:
+//            no cMo) is followed by its homography (servo/homography_tracker.h, left or only
+//            eye), predicted by the last frame-to-frame change of H, and agreement is measured
+//            on its corners (confirm_max_corner_fraction);
 //   re-detect when the tracker loses the target (quality degrades, it leaves the view, an
 //            occluder), the same frame is detected first in the predicted region and scale
 //            (detector::ObjectPrior) and then, if that fails, in the whole frame; for
@@ -53,6 +56,10 @@ struct TargetTrackerOptions {
   int confirm_detections = 2;
   double confirm_max_translation_fraction = 0.05;  ///< agreement: position difference / distance
   double confirm_max_rotation_rad = 0.2;           ///< agreement: rotation difference
+  /// Agreement of a 2D-only object's homographies: largest pattern corner difference / the
+  /// pattern's diagonal in the image (0.05: as the position's 5 % of the distance, for a
+  /// pattern seen square-on).
+  double confirm_max_corner_fraction = 0.05;
   /// An unconfirmed target is dropped after this many frames without confirmation.
   int confirm_max_frames = 6;
   /// Frames after a loss during which the predicted region is searched before the whole frame.
@@ -66,7 +73,7 @@ struct TargetTrackerOptions {
   int redetect_every_frames = 0;
   /// Without camera motion in the frames: predict the next pose by the last frame-to-frame motion.
   bool constant_velocity = true;
-  TrackerOptions tracker;  ///< for the default trackers (planarTrackerFactory)
+  TrackerOptions tracker;  ///< for the default trackers (planarTrackerFactory, the homography tracker)
   /// Throws std::invalid_argument "TargetTrackerOptions.<field>: <problem>".
   void check() const;
 };
@@ -81,8 +88,12 @@ struct TargetState {
   bool confirmed = false;
   int agreeing_detections = 0;  ///< consecutive agreeing detections so far
   std::optional<Pose> cMo;      ///< detect/track: object in the (left) camera frame at capture
-  /// Pattern corners TL, TR, BR, BL in the (left) image: detected, or projected from cMo.
+  /// Pattern corners TL, TR, BR, BL in the (left) image: detected, projected from cMo, or (a
+  /// tracked 2D-only object) under the tracked homography.
   std::optional<std::array<Eigen::Vector2d, 4>> corners;
+  /// mode track, a 2D-only object: the tracked homography (undistorted reference px ->
+  /// undistorted image px, as detector::Detection::H); detect: see `detection`.
+  std::optional<Eigen::Matrix3d> H;
   /// mode detect: the detection (best instance; the left eye's for stereo, found = false when
   /// only the right eye found it). Otherwise found = false.
   detector::Detection detection;
@@ -131,7 +142,7 @@ class TargetTracker {
   /// Forgets every target (trackers stopped, confirmations cleared).
   void reset();
 
-  /// Whether frames are tracked between detections (options.track and an object with a pose).
+  /// Whether frames are tracked between detections (options.track and at least one object).
   bool tracking() const;
   const TargetTrackerOptions& options() const;
 

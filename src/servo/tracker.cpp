@@ -63,6 +63,7 @@ void TrackerOptions::check() const {
        "align_max_feature_rms_px", "must be > 0");
   need(std::isfinite(align_max_corner_shift_px) && align_max_corner_shift_px > 0,
        "align_max_corner_shift_px", "must be > 0");
+  need(align_max_template_px >= 64, "align_max_template_px", "must be >= 64");
   need(std::isfinite(align_min_correlation) && align_min_correlation >= -1 && align_min_correlation < 1,
        "align_min_correlation", "must be in [-1, 1)");
 }

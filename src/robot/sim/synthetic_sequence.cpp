@@ -35,6 +35,18 @@ Pose viewPointPose(const ViewPoint& v) {
   return Pose(R, c);
 }
 
+ViewPoint swayPath(double t, double cycles) {
+  const double a = 2 * M_PI * cycles * t;
+  ViewPoint v;
+  v.distance_m = 0.75 + 0.2 * std::sin(a);
+  v.tilt_rad = 0.35 * (0.5 + 0.5 * std::sin(0.5 * a));
+  v.tilt_dir_rad = 0.3 * a;
+  v.roll_rad = 0.25 * std::sin(0.7 * a);
+  v.look_x_m = 0.04 * std::sin(1.3 * a);
+  v.look_y_m = 0.03 * std::cos(0.9 * a);
+  return v;
+}
+
 ViewPoint sidewaysView(double x_m, double y_m, double distance_m) {
   ViewPoint v;
   const double r = std::hypot(x_m, y_m);
@@ -115,7 +127,7 @@ cv::Mat renderEye(const Intrinsics& cam, const Scene& sc, const Pose& cMo, bool 
 
 TrackingSequence renderTrackingSequence(const TrackingSequenceSpec& spec, bool stereo) {
   TrackingSequence s;
-  s.camera = sceneCamera();
+  s.camera = spec.camera ? *spec.camera : sceneCamera();
   s.rig.left = s.rig.right = s.camera;
   s.rig.lMr = Pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0.12, 0, 0));
   const cv::Mat texture = loadMedia(spec.texture);

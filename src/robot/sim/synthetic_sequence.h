@@ -6,6 +6,7 @@
 // asked, the camera pose at capture (CaptureState::bMc with the base fixed at the world origin).
 // Deterministic given the spec.
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -44,12 +45,18 @@ struct TrackingSequenceSpec {
   double noise_sigma = 2.0;         ///< gray levels, new in every frame
   double exposure_fraction = 0.3;   ///< motion blur = this x the target centre's image motion
   bool capture_state = false;       ///< fill CaptureState::bMc (camera in the world/base frame)
+  /// The camera of both eyes; empty: sceneCamera() (640x480, f 550 px).
+  std::optional<Intrinsics> camera;
   uint64_t seed = 1;
 };
 
 /// The default path: distance 1.8 -> 0.4 -> 1.8 m, tilt swinging up to 50 deg, roll +-20 deg,
 /// the target drifting off-centre.
 ViewPoint orbitPath(double t);
+
+/// A slow hand-held-like path, `cycles` periods over t in [0, 1]: distance 0.55-0.95 m, tilt to
+/// 20 deg in a turning direction, roll +-14 deg, the target a few cm off-centre.
+ViewPoint swayPath(double t, double cycles);
 
 /// Camera in the object frame for a view point (oMc: camera frame in the object frame).
 Pose viewPointPose(const ViewPoint& v);
