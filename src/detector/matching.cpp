@@ -12,6 +12,7 @@
 #include "core/error.h"
 #include "core/geometry.h"
 #include "detector/homography.h"
+#include "detector/plane_views.h"
 
 namespace refgrasp::detector {
 namespace {
@@ -449,9 +450,10 @@ MatchResult matchPaper(const Context& cx, const std::vector<NearestTwo>& nn) {
   // after the unambiguous ones), and the local search decides.
   const double amb1 = kAmbiguousSeedFraction * cx.opt.max_descriptor_distance;
   const double amb1_2 = amb1 * amb1;
-  // The ratio test compares places: a second nearest at the first's place in the reference (the
-  // same point in another view-synthesised view, plane_views.h) is no rival.
+  // The ratio test compares places: a view-synthesised copy (plane_views.h) of the first's place
+  // in the reference, or the place of which the first is such a copy, is no rival.
   auto samePlace = [&](int a, int b) {
+    if (rk[a].class_id != kSynthesisedFeature && rk[b].class_id != kSynthesisedFeature) return false;
     const double dx = rk[a].pt.x - rk[b].pt.x, dy = rk[a].pt.y - rk[b].pt.y;
     const double r = kSamePlaceFraction * std::max(rk[a].size, rk[b].size);
     return dx * dx + dy * dy <= r * r;

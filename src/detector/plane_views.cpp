@@ -81,6 +81,7 @@ void addView(const cv::Mat& gray, const Vec2& offset, const Eigen::Matrix2d& R, 
     k.pt = cv::Point2f(static_cast<float>(p.x()), static_cast<float>(p.y()));
     k.angle = static_cast<float>(angle);
     k.size = static_cast<float>(k.size / std::sqrt(e0.x() * e0.y() * ey));
+    k.class_id = kSynthesisedFeature;
     out->keypoints.push_back(k);
     out->descriptors.push_back(f.descriptors.row(i));
   }

@@ -21,6 +21,10 @@
 
 namespace refgrasp::detector {
 
+/// cv::KeyPoint::class_id of a view-synthesised feature (a copy of a reference place as another
+/// view sees it); the reference's own features keep SIFT's -1.
+constexpr int kSynthesisedFeature = 1;
+
 /// A synthesised feature k (descriptor d) repeats the kept feature o (descriptor od): it lies
 /// within half the larger size of it, the sizes are within 1.5x and the descriptors within 250
 /// (L2; OpenCV SIFT descriptors have norm ~512, unrelated ones are 350-450 apart). Shared by the
@@ -33,7 +37,8 @@ bool repeatsFeature(const cv::KeyPoint& o, const cv::Mat& od, const cv::KeyPoint
 /// to the pattern plane seen fronto-parallel near the pattern's centre (any scale; identity when
 /// the reference's pose is unknown: the reference then stands for the frontal view). Keypoints
 /// in reference px; size and angle as the view's feature maps back through the view's affine
-/// (size scaled by the square root of its area change, angle along the mapped direction).
+/// (size scaled by the square root of its area change, angle along the mapped direction),
+/// class_id kSynthesisedFeature.
 Features synthesisedPlaneFeatures(const cv::Mat& reference, const Features& own,
                                   const std::vector<Eigen::Vector2d>& region, const Eigen::Matrix2d& frontal,
                                   const SiftOptions& sift);
