@@ -11,7 +11,7 @@ Rules (the same for every world, nothing tuned to one):
   `start` (x, y, heading).
 - Furniture stands with its back 0.25 m from a wall (N: y = +5, S: y = -5, E: x = +5, W: x = -5),
   its front facing the room, its middle at x = `along` (N and S walls) or y = `along` (E, W). A table is 0.70 deep, 1.20
-  wide and 0.72 m high; a shelf 0.40 deep, 1.00 wide and 0.90 m high.
+  wide and 0.72 m high; a shelf 0.40 deep, 1.00 wide and 0.85 m high.
 - The target is a box on furniture `on`, its photographed front 9 cm behind the front edge,
   `offset` m along the edge from its middle (+ to the left seen from the room), turned `turn_deg`
   from facing straight into the room; grasped at the box centre (as the photo worlds).
@@ -30,7 +30,7 @@ from make_shape_scenarios import camera_and_faults  # noqa: E402
 ROOM = 10.0
 WALL_GAP = 0.25
 EDGE_TO_FACE = 0.09
-KINDS = {"table": (0.70, 1.20, 0.72), "shelf": (0.40, 1.00, 0.90)}  # depth, width, height
+KINDS = {"table": (0.70, 1.20, 0.72), "shelf": (0.40, 1.00, 0.85)}  # depth, width, height
 OUT = {"N": (0.0, -1.0), "S": (0.0, 1.0), "E": (-1.0, 0.0), "W": (1.0, 0.0)}  # front normal, into the room
 # The target definitions' face widths (config/objects/photo_*_camera.yaml, make_grasp_scenarios.py).
 WIDTH = {"cookie_box": 0.22, "butterfly": 0.18, "fruits": 0.21, "aerial_town": 0.16, "hotel_facade": 0.20}
@@ -51,7 +51,7 @@ WORLDS = [
          dist=[(1, 0.1, "../../media/photos/cookie_box.png", (0.22, 0.15, 0.07)),
                (2, -0.2, "../../media/boxes/box_side_b.png", (0.26, 0.20, 0.20)),
                (3, 0.0, "../../media/photos/butterfly_on_leaf.jpg", (0.18, 0.13, 0.06))],
-         text="a 20 cm photographed hotel facade box on a 0.9 m shelf 4.9 m away across the room, "
+         text="a 20 cm photographed hotel facade box on a 0.85 m shelf 4.9 m away across the room, "
               "behind the robot on its left, turned -25 deg, other photographs on the tables"),
     dict(name="room_butterfly_corner", photo="butterfly", depth=0.06, start=(0.0, 1.0, 1.57), seed=43,
          noise=2.5, faults="drops", turn=-10, on=0, offset=-0.15,
