@@ -53,7 +53,7 @@ void BeliefSearchOptions::check() const {
   check(finiteIn(detect_slope_px, 1e-3, 1e4), w + "detect_slope_px", "must be > 0");
   check(finiteIn(detect_max, 1e-3, 1), w + "detect_max", "must be in (0, 1]");
   check(finiteIn(image_margin_px, 0, 1000), w + "image_margin_px", "must be in [0, 1000]");
-  check(finiteIn(min_look_range_m, 0.05, 10), w + "min_look_range_m", "must be in [0.05, 10]");
+  check(finiteIn(max_look_px, 1, 1e4), w + "max_look_px", "must be in [1, 1e4]");
   check(finiteIn(max_view_range_m, 0.1, 100), w + "max_view_range_m", "must be in [0.1, 100]");
   check(finiteIn(viewpoint_spacing_m, 0.1, 5), w + "viewpoint_spacing_m", "must be in [0.1, 5]");
   check(finiteIn(clearance_m, 0, 2), w + "clearance_m", "must be in [0, 2]");
@@ -254,12 +254,13 @@ Eigen::Vector3d BeliefSearch::targetAt(int cell) const {
 double BeliefSearch::unoccludedPd(const Pose& cMw, int cell, double* depth) const {
   const Eigen::Vector3d P = targetAt(cell);
   const Eigen::Vector3d X = cMw * P;
-  if (X.z() < opt_.min_look_range_m || X.norm() > opt_.max_view_range_m) return 0;
+  if (X.z() < 0.2 || X.norm() > opt_.max_view_range_m) return 0;
   const double u = camera_.fx * X.x() / X.z() + camera_.cx, v = camera_.fy * X.y() / X.z() + camera_.cy;
   const double m = opt_.image_margin_px;
   if (u < m || v < m || u > camera_.width - m || v > camera_.height - m) return 0;
   if (depth) *depth = X.z();
   const double w = camera_.fx * opt_.target_size_m / X.z();
+  if (w > opt_.max_look_px) return 0;
   return opt_.detect_max / (1 + std::exp(-(w - opt_.detect_half_px) / opt_.detect_slope_px));
 }
 

@@ -49,9 +49,10 @@ struct BeliefSearchOptions {
   double detect_max = 0.95;
   double image_margin_px = 16;     ///< the target's centre this far inside the image
   double max_view_range_m = 8;     ///< cells further than this are not looked at
-  /// Looks count only at this depth or more: a target found closer leaves the approach no room
-  /// to line the base up without turning the target out of the head's reach.
-  double min_look_range_m = 1.3;
+  /// Looks count only where the target would be at most this large (px; 65 px: an 18 cm face
+  /// 1.35 m away, a 9 cm can 0.7 m away): a target found nearer leaves the approach no room to
+  /// line the base up without turning it out of the head's reach.
+  double max_look_px = 65;
   /// Viewpoints: a grid this fine over the free floor; free = further than the base's radius
   /// plus clearance_m from every fixture and wall.
   double viewpoint_spacing_m = 0.5;

@@ -551,7 +551,7 @@ TEST(RealisticSets, ALarge2DTargetKeepsItsFeatureHomography) {
 }
 
 // View-synthesised reference features (MatchOptions::plane_views) on far faces (1.8-2.8 m, 31-38
-// px, 18-56 deg oblique; development seed 1) that the reference's own features miss: with the
+// px, 18-56 deg oblique; seed 1) that the reference's own features miss: with the
 // views each is found with its pose within 2 deg and 2 % of the distance, without them none is
 // found. And photo clutter with every object of the photos and procedural sets registered still
 // yields no detection with the views' extra features in every index.
