@@ -7,7 +7,6 @@
 #include "core/geometry.h"
 #include "detector/cylinder_detection.h"
 #include "detector/homography.h"
-#include "detector/plane_views.h"
 
 namespace refgrasp::detector {
 
@@ -29,23 +28,6 @@ Eigen::Matrix3d rectification(const PlanarTarget& target, double diagonal_px) {
   return R.allFinite() ? R : Eigen::Matrix3d::Identity();
 }
 
-// The linear map from reference px to the pattern plane seen fronto-parallel, at the pattern
-// region's centre (the rectification's Jacobian there, any scale); identity without a reference
-// pose.
-Eigen::Matrix2d frontalMap(const ObjectModel& object) {
-  if (!object.target) return Eigen::Matrix2d::Identity();
-  const Eigen::Matrix3d R = rectification(*object.target, 1.0);
-  Eigen::Vector2d c = Eigen::Vector2d(object.reference.cols - 1, object.reference.rows - 1) / 2;
-  if (object.pattern_polygon_px.size() >= 3) c = polygonCentroid(object.pattern_polygon_px);
-  const Eigen::Vector3d y = R * c.homogeneous();
-  if (!(std::abs(y.z()) > 1e-12)) return Eigen::Matrix2d::Identity();
-  const double u = y.x() / y.z(), v = y.y() / y.z();
-  Eigen::Matrix2d J;
-  J << R(0, 0) - u * R(2, 0), R(0, 1) - u * R(2, 1), R(1, 0) - v * R(2, 0), R(1, 1) - v * R(2, 1);
-  J /= y.z();
-  return J.allFinite() ? J : Eigen::Matrix2d::Identity();
-}
-
 }  // namespace
 
 RegisteredObject registerObject(const ObjectModel& object, const DetectorOptions& opt) {
@@ -53,20 +35,6 @@ RegisteredObject registerObject(const ObjectModel& object, const DetectorOptions
   obj.model = object;
   Features f = extractSift(object.reference, opt.sift);
   std::vector<Eigen::Vector2d> polygon = object.pattern_polygon_px;
-  MatchOptions match = opt.match;
-  int synthesised = 0;
-  // A cylinder on its cylinder model has its own views (cylinder_views.h); under the paper pose it
-  // is its flat label on the planar path, as a planar object of the same reference.
-  const bool cylinder_model = object.isCylinder() && opt.pose == PoseMethod::kRefined;
-  if (opt.match.plane_views && !cylinder_model) {
-    // The pattern as it looks tilted and from further off (plane_views.h) joins the index; the
-    // cap grows with its features, so that they add to the reference's own, not replace them.
-    const Features views = synthesisedPlaneFeatures(object.reference, f, polygon, frontalMap(object), opt.sift);
-    match.max_reference_features += views.size();
-    synthesised = views.size();
-    f.keypoints.insert(f.keypoints.end(), views.keypoints.begin(), views.keypoints.end());
-    if (!views.descriptors.empty()) f.descriptors.push_back(views.descriptors);
-  }
   if (object.camera) {
     undistortKeypoints(&f.keypoints, *object.camera);
     for (auto& p : polygon) p = object.camera->undistortPixel(p);
@@ -74,9 +42,7 @@ RegisteredObject registerObject(const ObjectModel& object, const DetectorOptions
   for (int i = 0; i < 4; ++i)
     obj.corners_und_px[i] =
         object.camera ? object.camera->undistortPixel(object.corners_px[i]) : object.corners_px[i];
-  obj.index = buildReferenceIndex(std::move(f), polygon, match);
-  const int n = obj.index.features.size();
-  obj.index.features_per_place = std::max(1.0, static_cast<double>(n) / std::max(1, n - synthesised));
+  obj.index = buildReferenceIndex(std::move(f), polygon, opt.match);
   if (object.target) obj.index.rectify_px = rectification(*object.target, obj.index.diagonal_px);
   obj.polygon_und_px = obj.index.polygon_px;
   obj.periods = repeatPeriods(obj.index);
@@ -90,7 +56,7 @@ RegisteredObject registerObject(const ObjectModel& object, const DetectorOptions
     miny = std::min(miny, p.y()), maxy = std::max(maxy, p.y());
   }
   obj.region_is_rect = std::abs(signedArea(obj.polygon_und_px)) >= 0.98 * (maxx - minx) * (maxy - miny);
-  if (cylinder_model) registerCylinder(&obj, opt);
+  if (object.isCylinder() && opt.pose == PoseMethod::kRefined) registerCylinder(&obj, opt);
   return obj;
 }
 

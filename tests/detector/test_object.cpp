@@ -177,6 +177,13 @@ TEST(ShippedObjects, EveryDefinitionLoadsWith3dCorners) {
     const ObjectModel m = loadObjectDefinition(e.path().string());
     ++n;
     EXPECT_EQ(m.name, e.path().stem().string());
+    // *_2d.yaml: a 2D-only definition by design (a photo and its pattern region, no measured
+    // pose: how a user starts on their own footage); it loads, without 3D geometry.
+    if (e.path().stem().string().size() > 3 &&
+        e.path().stem().string().compare(e.path().stem().string().size() - 3, 3, "_2d") == 0) {
+      EXPECT_FALSE(m.hasPose()) << e.path();
+      continue;
+    }
     ASSERT_TRUE(m.hasPose()) << e.path();
     const std::string stem = e.path().stem().string();
     // A several-view box of scripts/make_shape_scenarios.py (five faces) or the clip's box of
