@@ -29,6 +29,9 @@ Topics (ROS names; on DDS "rt" + name):
   out  <ns>/object_pose  geometry_msgs/PoseStamped of the first --object (cMo, optical frame)
        <ns>/detections   vision_msgs/Detection3DArray (vision_msgs 4.x, ROS 2 Humble)
        <ns>/object_info  refgrasp_msgs/ObjectInfo: name, found, R (3x3), t (m), inliers, stamp
+       <ns>/object_corners  refgrasp_msgs/ObjectCorners: name, found, tracked, pattern corners
+                         (px), homography (2D-only objects), inliers: the result of an object
+                         without reference_pose (2D-only: no pose; mono only)
   srv  <ns>/detect       refgrasp_msgs/srv/Detect {object_name, timeout_s} -> {found, rotation,
                          translation, error}; timeout_s 0: the latest result, > 0: the next frame's
 The detector works on the newest frame; frames arriving meanwhile are dropped (counted).
@@ -88,7 +91,8 @@ int runVisionComponent(int argc, char** argv) {
     std::set<std::string> names;
     for (const auto& f : object_files) {
       detector::ObjectModel m = detector::loadObjectDefinition(f);
-      if (!m.hasPose()) throw ConfigError(f, "reference_pose", "required by the component (a 3D pose)");
+      if (!m.hasPose() && opt.stereo)
+        throw ConfigError(f, "reference_pose", "required with --stereo (stereo fuses 3D poses)");
       if (!names.insert(m.name).second)
         throw ConfigError(f, "name", "object name '" + m.name + "' used twice");
       det.addObject(m);

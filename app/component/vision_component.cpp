@@ -29,12 +29,12 @@ namespace {
 constexpr double kPollPeriodS = 0.2;
 
 /// The detector's object names in its order; throws std::invalid_argument when there is none
-/// or one has no reference pose (the component publishes 3D poses).
-std::vector<std::string> checkedObjectNames(const detector::Detector& detector) {
+/// or, in stereo, one has no reference pose (stereo fuses 3D poses).
+std::vector<std::string> checkedObjectNames(const detector::Detector& detector, bool stereo) {
   std::vector<std::string> names;
   for (int i = 0; i < detector.objectCount(); ++i) {
-    if (!detector.object(i).hasPose())
-      throw std::invalid_argument(detector.object(i).name + ": the component needs a reference_pose (3D)");
+    if (stereo && !detector.object(i).hasPose())
+      throw std::invalid_argument(detector.object(i).name + ": stereo needs a reference_pose (3D)");
     names.push_back(detector.object(i).name);
   }
   if (names.empty()) throw std::invalid_argument("the component needs at least one object");
@@ -61,7 +61,7 @@ struct VisionComponent::Impl {
       : log(orStderr(std::move(warn)), options.warning_period_s),
         participant(options.domain),
         waitset(participant),
-        object_names(checkedObjectNames(detector)),
+        object_names(checkedObjectNames(detector, options.stereo.has_value())),
         input(participant, waitset, options.ns, options.stereo.has_value(), stats, log),
         worker(std::move(detector), options, object_names, participant, input, stats, log),
         service(participant, waitset, options.ns, object_names, stats) {

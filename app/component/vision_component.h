@@ -8,7 +8,11 @@
 //                                                 equal stamps
 //   out  <ns>/object_pose   geometry_msgs/PoseStamped: cMo of the FIRST object, when found
 //        <ns>/detections    vision_msgs/Detection3DArray (4.x), every instance found
-//        <ns>/object_info   refgrasp_msgs/ObjectInfo, one per object per frame (found or not)
+//        <ns>/object_info   refgrasp_msgs/ObjectInfo, one per object per frame (found or not;
+//                           a 2D-only object, without reference_pose, has no pose: found = false)
+//        <ns>/object_corners refgrasp_msgs/ObjectCorners, one per object per frame: the pattern's
+//                           corners in the image (px), a 2D-only object's homography; the result
+//                           of a 2D-only object (mono only)
 //                           all reliable, keep last 10; header = the image's (stamp, optical frame)
 //   srv  <ns>/detect        refgrasp_msgs/srv/Detect: timeout_s = 0 gives the latest result,
 //                           > 0 waits up to that long for the result of the next frame
@@ -70,7 +74,7 @@ struct ComponentStats {
 class VisionComponent {
  public:
   using WarningSink = std::function<void(const std::string&)>;
-  /// Takes a detector with its objects added (all with a reference pose). Creates the DDS
+  /// Takes a detector with its objects added (in stereo all with a reference pose). Creates the DDS
   /// endpoints (throws dds::DdsError, std::invalid_argument) and starts serving at once.
   VisionComponent(detector::Detector detector, const VisionComponentOptions& options,
                   WarningSink warn = {});

@@ -20,10 +20,23 @@ FrameStamp frameStamp(const FrameJob& job) {
 
 }  // namespace
 
+/// Where one object's pattern is in the image (its object_corners message).
+struct PatternResult {
+  bool found = false;
+  bool tracked = false;  ///< from the tracker, no detection this frame
+  std::array<Eigen::Vector2d, 4> corners{};  ///< TL, TR, BR, BL, image px
+  std::optional<Eigen::Matrix3d> H;          ///< 2D-only: reference px -> undistorted image px
+  int inliers = 0;       ///< the detection's inliers, or the tracker's features
+};
+
 /// What one frame gave.
 struct Worker::FrameOutcome {
-  explicit FrameOutcome(size_t object_count) : results(object_count), inliers(object_count, 0) {
-    for (ObjectResult& result : results) result.have = true;
+  FrameOutcome(size_t object_count, const std::vector<std::string>& two_d_errors)
+      : results(object_count), inliers(object_count, 0), patterns(object_count) {
+    for (size_t object = 0; object < object_count; ++object) {
+      results[object].have = true;
+      results[object].error = two_d_errors[object];
+    }
   }
   /// The object's result: found at cMo, with `pose_inliers` behind the pose.
   void setFound(int object, const Pose& cMo, int pose_inliers) {
@@ -34,6 +47,7 @@ struct Worker::FrameOutcome {
   std::vector<ObjectResult> results;            ///< per object: found and cMo of its first instance
   std::vector<std::pair<int, Pose>> instances;  ///< (object, cMo) of every instance found
   std::vector<int> inliers;  ///< per object: the inliers (tracked: the features) behind its pose
+  std::vector<PatternResult> patterns;  ///< per object: its first instance's pattern in the image
   std::string problem;       ///< empty when the frame was usable
   bool tracked_only = false; ///< with track: the pipeline needed no detection
 };
@@ -57,10 +71,20 @@ Worker::Worker(detector::Detector detector, const VisionComponentOptions& option
                          dds::QosProfile::reliable(10)),
       object_info_writer_(participant, dds::ddsTopicName(dds::joinRosName(options.ns, "object_info")),
                           dds::QosProfile::reliable(
-                              std::max(10, static_cast<int>(object_names_.size()) * 2))) {}
+                              std::max(10, static_cast<int>(object_names_.size()) * 2))),
+      object_corners_writer_(participant, dds::ddsTopicName(dds::joinRosName(options.ns, "object_corners")),
+                             dds::QosProfile::reliable(
+                                 std::max(10, static_cast<int>(object_names_.size()) * 2))) {
+  // What the detect service answers for an object without a pose.
+  for (size_t object = 0; object < object_names_.size(); ++object)
+    two_d_errors_.push_back(detector_.object(static_cast<int>(object)).hasPose()
+                                ? ""
+                                : object_names_[object] + " is 2D-only (no reference_pose): no pose; its corners are on " +
+                                      dds::joinRosName(options.ns, "object_corners"));
+}
 
 std::vector<ObjectResult> Worker::process(const FrameJob& job, double taken_at) {
-  FrameOutcome outcome(object_names_.size());
+  FrameOutcome outcome(object_names_.size(), two_d_errors_);
   const CheckedFrame frame = input_.checkFrame(job);
   outcome.problem = frame.problem;
   const double detect_start = steadyNow();
@@ -85,9 +109,17 @@ void Worker::detectMono(const FrameJob& job, const CheckedFrame& frame, FrameOut
       detector_.detect(frame.gray[0].gray, frame.camera[0], frameStamp(job));
   if (!result.ok) outcome->problem = input_.imageTopic(0) + ": " + result.error;
   for (const detector::Detection& detection : result.detections) {
-    if (!detection.found || !detection.cMo) continue;
+    if (!detection.found) continue;
+    if (detection.instance == 0) {  // the object's result is its first instance
+      PatternResult& pattern = outcome->patterns[static_cast<size_t>(detection.object)];
+      pattern.found = true;
+      pattern.corners = detection.corners;
+      if (!detection.cMo) pattern.H = detection.H;
+      pattern.inliers = detection.inliers;
+    }
+    if (!detection.cMo) continue;
     outcome->instances.emplace_back(detection.object, *detection.cMo);
-    if (detection.instance != 0) continue;  // the object's result is its first instance
+    if (detection.instance != 0) continue;
     outcome->setFound(detection.object, *detection.cMo, detection.inliers);
   }
 }
@@ -99,6 +131,12 @@ void Worker::detectStereo(const FrameJob& job, const CheckedFrame& frame, FrameO
   if (!result.ok) outcome->problem = input_.imageTopic(0) + ": " + result.error;
   for (const detector::StereoDetection& detection : result.objects) {
     if (!detection.fused.lMo) continue;
+    if (detection.left.found) {  // the corners are the left eye's, as the pose's frame
+      PatternResult& pattern = outcome->patterns[static_cast<size_t>(detection.object)];
+      pattern.found = true;
+      pattern.corners = detection.left.corners;
+      pattern.inliers = detection.left.inliers;
+    }
     outcome->instances.emplace_back(detection.object, *detection.fused.lMo);
     outcome->setFound(detection.object, *detection.fused.lMo,
                       detection.left.inliers + detection.right.inliers);
@@ -110,12 +148,20 @@ void Worker::track(const FrameJob& job, const CheckedFrame& frame, FrameOutcome*
   if (!tracked.ok) outcome->problem = input_.imageTopic(0) + ": " + tracked.error;
   outcome->tracked_only = tracked.ok && tracked.detector_calls == 0;
   for (const servo::TargetState& target : tracked.objects) {
-    if (!target.cMo || !target.confirmed) continue;  // an unconfirmed pose is not published
+    if (!target.confirmed) continue;  // an unconfirmed result is not published
+    const bool detected = target.mode == servo::TrackMode::kDetect;
+    const int support = detected ? target.detection.inliers : target.quality.features + target.quality_right.features;
+    if (target.corners) {
+      PatternResult& pattern = outcome->patterns[static_cast<size_t>(target.object)];
+      pattern.found = true;
+      pattern.tracked = !detected;
+      pattern.corners = *target.corners;
+      if (!target.cMo) pattern.H = detected ? std::optional<Eigen::Matrix3d>(target.detection.H) : target.H;
+      pattern.inliers = support;
+    }
+    if (!target.cMo) continue;
     outcome->instances.emplace_back(target.object, *target.cMo);
-    outcome->setFound(target.object, *target.cMo,
-                      target.mode == servo::TrackMode::kDetect
-                          ? target.detection.inliers
-                          : target.quality.features + target.quality_right.features);
+    outcome->setFound(target.object, *target.cMo, support);
   }
 }
 
@@ -144,6 +190,7 @@ void Worker::reject(const FrameJob& job, FrameOutcome* outcome) {
     result.found = false;
     result.error = outcome->problem;
   }
+  for (PatternResult& pattern : outcome->patterns) pattern = PatternResult();
   // One warning per kind of problem: the same message up to its numbers.
   std::string kind = outcome->problem;
   for (char& ch : kind)
@@ -161,6 +208,7 @@ void Worker::publish(const msg::Header& image_header, const FrameOutcome& outcom
   }
   publishDetections(header, outcome);
   publishObjectInfo(header, outcome);
+  publishObjectCorners(header, outcome);
 }
 
 void Worker::publishDetections(const msg::Header& header, const FrameOutcome& outcome) {
@@ -205,6 +253,21 @@ void Worker::publishObjectInfo(const msg::Header& header, const FrameOutcome& ou
     for (int k = 0; k < 3; ++k) info.translation[k] = result.found ? result.cMo.t[k] : 0.0;
     info.inliers = result.found ? outcome.inliers[object] : 0;
     object_info_writer_.write(info);
+  }
+}
+
+void Worker::publishObjectCorners(const msg::Header& header, const FrameOutcome& outcome) {
+  for (size_t object = 0; object < object_names_.size(); ++object) {
+    const PatternResult& pattern = outcome.patterns[object];
+    msg::ObjectCorners corners{};
+    corners.header = header;
+    corners.object_name = const_cast<char*>(object_names_[object].c_str());
+    corners.found = pattern.found;
+    corners.tracked = pattern.tracked;
+    for (int k = 0; k < 8; ++k) corners.corners[k] = pattern.found ? pattern.corners[k / 2][k % 2] : 0.0;
+    for (int k = 0; k < 9; ++k) corners.homography[k] = pattern.found && pattern.H ? (*pattern.H)(k / 3, k % 3) : 0.0;
+    corners.inliers = pattern.found ? pattern.inliers : 0;
+    object_corners_writer_.write(corners);
   }
 }
 

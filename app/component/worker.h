@@ -2,14 +2,15 @@
 // The component's detector and publisher. For each frame the detector thread takes from the
 // input, it runs the detector (mono or stereo) or, with `track`, the robot's detect-confirm-track
 // pipeline (servo/target_tracker.h), and publishes the results: <ns>/object_pose (the first
-// object, when found), <ns>/detections (every instance found) and <ns>/object_info (one per object,
-// found or not). A frame the input's checks or the detector reject gives found = false for every
+// object, when found), <ns>/detections (every instance found), <ns>/object_info (one per object,
+// found or not; a 2D-only object's always found = false, it has no pose) and <ns>/object_corners
+// (one per object: the pattern's corners, the only result of a 2D-only object). A frame the input's checks or the detector reject gives found = false for every
 // object and one rate-limited warning per kind of problem. It counts processed, tracked and
 // rejected frames and times each processed one (detector, wait in the slot, own work).
 //
 // Threads: process() runs on the detector thread only (the facade's loop); the rest is set up
 // in the constructor.
-// Owns: the detector, the tracking pipeline (with track; it refers to the detector), the three
+// Owns: the detector, the tracking pipeline (with track; it refers to the detector), the four
 // writers. Reads the input's checks and topic names; writes the shared statistics and log.
 #include <memory>
 #include <string>
@@ -58,6 +59,7 @@ class Worker {
   void publish(const dds::msg::Header& image_header, const FrameOutcome& outcome);
   void publishDetections(const dds::msg::Header& header, const FrameOutcome& outcome);
   void publishObjectInfo(const dds::msg::Header& header, const FrameOutcome& outcome);
+  void publishObjectCorners(const dds::msg::Header& header, const FrameOutcome& outcome);
   /// Counts the frame processed or rejected; times a processed one (steady clock, s).
   void countFrame(const FrameJob& job, const FrameOutcome& outcome, double taken_at,
                   double detect_start, double detect_end, double published_at);
@@ -66,12 +68,15 @@ class Worker {
   const Pose lMr_;  ///< stereo: the right eye in the left eye's frame
   std::unique_ptr<servo::TargetTracker> pipeline_;  ///< with track (refers to detector_)
   const std::vector<std::string> object_names_;
+  /// Per object: empty, or (a 2D-only object) why the detect service has no pose for it.
+  std::vector<std::string> two_d_errors_;
   const FrameInput& input_;
   SharedStats& stats_;
   RateLimitedLog& log_;
   dds::Writer<dds::msg::PoseStamped> pose_writer_;
   dds::Writer<dds::msg::Detection3DArray> detections_writer_;
   dds::Writer<dds::msg::ObjectInfo> object_info_writer_;
+  dds::Writer<dds::msg::ObjectCorners> object_corners_writer_;
 };
 
 }  // namespace refgrasp::component

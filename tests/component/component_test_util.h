@@ -1,7 +1,9 @@
 #pragma once
 // Helpers for the vision component tests: rendered frames with ground truth, a camera publisher
 // and a result listener on the component's topics (a private domain and namespace per process).
+#include <array>
 #include <chrono>
+#include <functional>
 #include <map>
 #include <mutex>
 #include <optional>
@@ -68,23 +70,19 @@ class CameraPublisher {
   dds::Writer<dds::msg::CameraInfo> info_;
 };
 
-/// Everything the component published on object_info, by image stamp (ns) and object name.
-class InfoListener {
+/// Everything the component published on one of its per-object topics (object_info,
+/// object_corners), by image stamp (ns) and object name, as `decode` reads each sample.
+template <class Msg, class Value>
+class StampedListener {
  public:
-  struct Info {
-    bool found = false;
-    Pose cMo;
-    int inliers = 0;
-    std::string frame;
-  };
-  InfoListener(const dds::Participant& pp, const std::string& ns)
-      : reader_(pp, dds::ddsTopicName(ns + "/object_info"), dds::QosProfile::reliable(100)) {}
+  StampedListener(const dds::Participant& pp, const std::string& topic, std::function<Value(const Msg&)> decode)
+      : reader_(pp, dds::ddsTopicName(topic), dds::QosProfile::reliable(100)), decode_(std::move(decode)) {}
   static int64_t key(Seconds stamp) {
     const dds::msg::Time t = dds::toRosTime(stamp);
     return static_cast<int64_t>(t.sec) * 1000000000LL + t.nanosec;
   }
-  /// Waits for the object_info of `object` for the image stamped `stamp`.
-  std::optional<Info> waitFor(Seconds stamp, const std::string& object, double timeout_s) {
+  /// Waits for the sample of `object` for the image stamped `stamp`.
+  std::optional<Value> waitFor(Seconds stamp, const std::string& object, double timeout_s) {
     const auto end = std::chrono::steady_clock::now() + std::chrono::duration<double>(timeout_s);
     for (;;) {
       poll();
@@ -96,14 +94,8 @@ class InfoListener {
   }
   void poll() {
     for (auto& s : reader_.takeAll()) {
-      Info i;
-      i.found = s->found;
-      for (int k = 0; k < 9; ++k) i.cMo.R(k / 3, k % 3) = s->rotation[k];
-      for (int k = 0; k < 3; ++k) i.cMo.t[k] = s->translation[k];
-      i.inliers = s->inliers;
-      i.frame = s->header.frame_id ? s->header.frame_id : "";
       const int64_t t = static_cast<int64_t>(s->header.stamp.sec) * 1000000000LL + s->header.stamp.nanosec;
-      seen_[{t, s->object_name}] = i;
+      seen_[{t, s->object_name}] = decode_(*s);
       last_stamp_ = std::max(last_stamp_, t);
     }
   }
@@ -117,9 +109,57 @@ class InfoListener {
   }
 
  private:
-  dds::Reader<dds::msg::ObjectInfo> reader_;
-  std::map<std::pair<int64_t, std::string>, Info> seen_;
+  dds::Reader<Msg> reader_;
+  std::function<Value(const Msg&)> decode_;
+  std::map<std::pair<int64_t, std::string>, Value> seen_;
   int64_t last_stamp_ = INT64_MIN;
+};
+
+/// What object_info said of one object in one frame.
+struct ObjectInfoValue {
+  bool found = false;
+  Pose cMo;
+  int inliers = 0;
+  std::string frame;
+};
+
+/// Everything the component published on object_info.
+class InfoListener : public StampedListener<dds::msg::ObjectInfo, ObjectInfoValue> {
+ public:
+  using Info = ObjectInfoValue;
+  InfoListener(const dds::Participant& pp, const std::string& ns)
+      : StampedListener(pp, ns + "/object_info", [](const dds::msg::ObjectInfo& s) {
+          Info i;
+          i.found = s.found;
+          for (int k = 0; k < 9; ++k) i.cMo.R(k / 3, k % 3) = s.rotation[k];
+          for (int k = 0; k < 3; ++k) i.cMo.t[k] = s.translation[k];
+          i.inliers = s.inliers;
+          i.frame = s.header.frame_id ? s.header.frame_id : "";
+          return i;
+        }) {}
+};
+
+/// What object_corners said of one object in one frame.
+struct ObjectCornersValue {
+  bool found = false, tracked = false;
+  std::array<Eigen::Vector2d, 4> corners{};  ///< TL, TR, BR, BL, image px
+  Eigen::Matrix3d H = Eigen::Matrix3d::Zero();
+  int inliers = 0;
+};
+
+/// Everything the component published on object_corners.
+class CornersListener : public StampedListener<dds::msg::ObjectCorners, ObjectCornersValue> {
+ public:
+  CornersListener(const dds::Participant& pp, const std::string& ns)
+      : StampedListener(pp, ns + "/object_corners", [](const dds::msg::ObjectCorners& s) {
+          ObjectCornersValue v;
+          v.found = s.found;
+          v.tracked = s.tracked;
+          for (int k = 0; k < 8; ++k) v.corners[k / 2][k % 2] = s.corners[k];
+          for (int k = 0; k < 9; ++k) v.H(k / 3, k % 3) = s.homography[k];
+          v.inliers = s.inliers;
+          return v;
+        }) {}
 };
 
 /// Publishes the frame until the component answered for its stamp (best effort: the first frames

@@ -1,5 +1,6 @@
 // The vision component in-process on a private domain: poses of rendered frames against ground
-// truth, the detect service, malformed input, the newest-frame policy, stereo, several objects.
+// truth, the detect service, malformed input, the newest-frame policy, stereo, several objects,
+// a 2D-only object's corners.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -11,6 +12,7 @@
 #include "component_test_util.h"
 #include "robot/dds/dds_test_util.h"
 #include "robot/sim/synthetic_sequence.h"
+#include "servo/two_d_sequence.h"
 
 using namespace refgrasp;
 using namespace refgrasp::testing;
@@ -433,6 +435,78 @@ TEST_F(Component, SeveralObjectsEachGetObjectInfo) {
   EXPECT_EQ(poses.takeNewest(&ps), 0);
 }
 
+// A 2D-only object (no reference_pose) with --track: its result is object_corners alone. The
+// first detection is not published (not confirmed), the next confirms it, then the tracker
+// follows with no detector run; corners within a fraction of a pixel of the truth, the
+// homography maps the reference's pattern corners onto them; object_info says found = false
+// and the service says why.
+TEST_F(Component, TwoDOnlyObjectIsTrackedOnObjectCorners) {
+  const TrackingSequence seq = twoDSequence(30, 200, 7);
+  auto c = start({twoDModel()}, std::nullopt, 5, /*track=*/true);
+  dds::Participant pp(domain_);
+  CameraPublisher cam(pp, ns_);
+  InfoListener infos(pp, ns_);
+  CornersListener corners(pp, ns_);
+  DetectClient client(pp, ns_ + "/detect");
+  ASSERT_TRUE(cam.waitForComponent(10));
+  ASSERT_TRUE(client.waitForService(10));
+  std::string found, tracked;
+  std::vector<double> errors;
+  for (size_t k = 0; k < seq.mono.size(); ++k) {
+    const Seconds stamp = 300.0 + 0.05 * static_cast<double>(k);
+    const auto info = publishUntilAnswered(cam, infos, seq.mono[k].image, stamp, "target");
+    ASSERT_TRUE(info.has_value()) << "frame " << k;
+    EXPECT_FALSE(info->found) << "frame " << k << ": a 2D-only object has no pose";
+    const auto r = corners.waitFor(stamp, "target", 3);
+    ASSERT_TRUE(r.has_value()) << "frame " << k;
+    found += r->found ? '1' : '0';
+    tracked += r->tracked ? '1' : '0';
+    if (!r->found) continue;
+    const auto truth = twoDTruthCorners(seq, k);
+    errors.push_back(cornerError(r->corners, truth));
+    EXPECT_GT(r->inliers, 10) << "frame " << k;
+    std::array<Eigen::Vector2d, 4> mapped;
+    for (size_t i = 0; i < 4; ++i) mapped[i] = (r->H * twoDModel().corners_px[i].homogeneous()).hnormalized();
+    EXPECT_LT(cornerError(mapped, r->corners), 0.01) << "frame " << k;
+  }
+  const auto s = c->stats();
+  std::printf("2D-only --track: found %s, tracked %s; corner error median %.3f px, max %.3f px\n", found.c_str(),
+              tracked.c_str(), quantile(errors, 0.5), quantile(errors, 1.0));
+  EXPECT_EQ(found, "0" + std::string(seq.mono.size() - 1, '1'));
+  EXPECT_EQ(tracked, "00" + std::string(seq.mono.size() - 2, '1'));
+  EXPECT_GE(s.tracked, static_cast<long>(seq.mono.size()) - 4);
+  // The tracker's own figures are 0.03 px median, 0.05 px max (HomographyTracking tests).
+  EXPECT_LT(quantile(errors, 0.5), 0.15);
+  EXPECT_LT(quantile(errors, 1.0), 0.3);
+  const auto reply = callDetect(client, "target", 0, 5);
+  ASSERT_TRUE(reply.has_value());
+  EXPECT_FALSE((*reply)->found);
+  EXPECT_EQ(std::string((*reply)->error),
+            "target is 2D-only (no reference_pose): no pose; its corners are on " + ns_ + "/object_corners");
+}
+
+// Without --track every frame's detection is published at once: found, not tracked.
+TEST_F(Component, TwoDOnlyObjectIsDetectedOnObjectCorners) {
+  const TrackingSequence seq = twoDSequence(3, 200, 7);
+  auto c = start({twoDModel()});
+  dds::Participant pp(domain_);
+  CameraPublisher cam(pp, ns_);
+  InfoListener infos(pp, ns_);
+  CornersListener corners(pp, ns_);
+  ASSERT_TRUE(cam.waitForComponent(10));
+  for (size_t k = 0; k < seq.mono.size(); ++k) {
+    const Seconds stamp = 400.0 + 0.05 * static_cast<double>(k);
+    ASSERT_TRUE(publishUntilAnswered(cam, infos, seq.mono[k].image, stamp, "target").has_value()) << "frame " << k;
+    const auto r = corners.waitFor(stamp, "target", 3);
+    ASSERT_TRUE(r.has_value()) << "frame " << k;
+    EXPECT_TRUE(r->found) << "frame " << k;
+    EXPECT_FALSE(r->tracked) << "frame " << k;
+    // The single-frame detector on such sequences: 0.06 px median, 0.15 px p90 (TrackingDrift).
+    EXPECT_LT(cornerError(r->corners, twoDTruthCorners(seq, k)), 0.5) << "frame " << k;
+    EXPECT_GT(r->inliers, 10) << "frame " << k;
+  }
+}
+
 TEST_F(Component, RejectsBadOptionsAndObjectsAtStartUp) {
   detector::Detector det;
   det.addObject(target("cereal_box", kTexture));
@@ -443,8 +517,11 @@ TEST_F(Component, RejectsBadOptionsAndObjectsAtStartUp) {
   o.ns = "refgrasp";
   EXPECT_THROW(VisionComponent(detector::Detector(det), o), std::invalid_argument);
   o.ns = ns_;
+  // A 2D-only object: no pose to fuse in stereo (mono serves its corners).
   detector::Detector flat;
   flat.addObject(detector::makeObjectModel("flat", loadMedia(kTexture), std::nullopt, std::nullopt));
+  o.stereo = StereoRig{sceneCamera(), sceneCamera(), Pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0.12, 0, 0))};
   EXPECT_THROW(VisionComponent(std::move(flat), o), std::invalid_argument);
+  o.stereo.reset();
   EXPECT_THROW(VisionComponent(detector::Detector(), o), std::invalid_argument);
 }

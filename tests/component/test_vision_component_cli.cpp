@@ -96,12 +96,12 @@ TEST_F(ComponentCli, HelpAndBadOptions) {
   std::tie(rc, err) = run(args({"--object", kObject, "--detector-config", bad_config.string()}));
   EXPECT_EQ(rc, 2);
   EXPECT_NE(err.find(bad_config.string() + ": match.min_inliers:"), std::string::npos) << err;
-  // A 2D-only object (no reference_pose) cannot give poses.
+  // A 2D-only object (no reference_pose) has no pose to fuse in stereo.
   const auto flat = dir_ / "flat.yaml";
   std::ofstream(flat) << "reference_image: " << kSource << "/media/targets/cereal_box.png\n";
-  std::tie(rc, err) = run(args({"--object", flat.string()}));
+  std::tie(rc, err) = run(args({"--object", flat.string(), "--stereo", kSource + "/config/cameras/bb2_rig.yaml"}));
   EXPECT_EQ(rc, 2);
-  EXPECT_NE(err.find(flat.string() + ": reference_pose: required by the component"), std::string::npos) << err;
+  EXPECT_NE(err.find(flat.string() + ": reference_pose: required with --stereo"), std::string::npos) << err;
 }
 
 TEST_F(ComponentCli, DdsFailureIsExit3) {

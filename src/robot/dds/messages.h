@@ -42,6 +42,7 @@ using Odometry = nav_msgs_msg_dds__Odometry_;
 using JointTrajectoryPoint = trajectory_msgs_msg_dds__JointTrajectoryPoint_;
 using JointTrajectory = trajectory_msgs_msg_dds__JointTrajectory_;
 using ObjectInfo = refgrasp_msgs_msg_dds__ObjectInfo_;
+using ObjectCorners = refgrasp_msgs_msg_dds__ObjectCorners_;
 using RequestHeader = refgrasp_msgs_srv_dds__RequestHeader_;
 using DetectRequest = refgrasp_msgs_srv_dds__Detect_Request_;
 using DetectResponse = refgrasp_msgs_srv_dds__Detect_Response_;
@@ -67,6 +68,7 @@ REFGRASP_DDS_MESSAGE(msg::Detection3DArray, vision_msgs_msg_dds__Detection3DArra
 REFGRASP_DDS_MESSAGE(msg::Odometry, nav_msgs_msg_dds__Odometry_)
 REFGRASP_DDS_MESSAGE(msg::JointTrajectory, trajectory_msgs_msg_dds__JointTrajectory_)
 REFGRASP_DDS_MESSAGE(msg::ObjectInfo, refgrasp_msgs_msg_dds__ObjectInfo_)
+REFGRASP_DDS_MESSAGE(msg::ObjectCorners, refgrasp_msgs_msg_dds__ObjectCorners_)
 REFGRASP_DDS_MESSAGE(msg::DetectRequest, refgrasp_msgs_srv_dds__Detect_Request_)
 REFGRASP_DDS_MESSAGE(msg::DetectResponse, refgrasp_msgs_srv_dds__Detect_Response_)
 

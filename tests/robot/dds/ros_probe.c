@@ -430,6 +430,17 @@ static void dec_object_info(rd *r) {
   pf64array(r, "translation", 3); putchar(',');
   pi32(r, "inliers");
 }
+/* refgrasp_msgs/ObjectCorners {Header header, string object_name, bool found, bool tracked,
+ * float64[8] corners, float64[9] homography, int32 inliers} */
+static void dec_object_corners(rd *r) {
+  pheader(r); putchar(',');
+  pstr(r, "object_name"); putchar(',');
+  printf("\"found\":%s,", ru8(r) ? "true" : "false");
+  printf("\"tracked\":%s,", ru8(r) ? "true" : "false");
+  pf64array(r, "corners", 8); putchar(',');
+  pf64array(r, "homography", 9); putchar(',');
+  pi32(r, "inliers");
+}
 static void dec_joint_state(rd *r) {
   pheader(r); putchar(',');
   pstrseq(r, "name"); putchar(',');
@@ -508,6 +519,7 @@ static const struct {
     {"nav_msgs::msg::dds_::Odometry_", dec_odometry},
     {"trajectory_msgs::msg::dds_::JointTrajectory_", dec_joint_trajectory},
     {"refgrasp_msgs::msg::dds_::ObjectInfo_", dec_object_info},
+    {"refgrasp_msgs::msg::dds_::ObjectCorners_", dec_object_corners},
     {"refgrasp_msgs::srv::dds_::Detect_Response_", dec_detect_response},
     {"refgrasp_msgs::srv::dds_::Detect_Request_", dec_detect_request},
 };

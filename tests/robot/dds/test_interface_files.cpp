@@ -66,6 +66,13 @@ TEST(InterfaceFiles, IdlAndRosDefinitionsAgree) {
   const Fields info = msgFields(read(pkg + "/msg/ObjectInfo.msg"));
   ASSERT_EQ(info.size(), 6u);
   EXPECT_EQ(idlFields(idl, "ObjectInfo_"), info);
+  const Fields corners = msgFields(read(pkg + "/msg/ObjectCorners.msg"));
+  ASSERT_EQ(corners.size(), 7u);
+  EXPECT_EQ(idlFields(idl, "ObjectCorners_"), corners);
+  // The public contract (docs/component.md), literally.
+  EXPECT_EQ(corners, (Fields{{"std_msgs/Header", "header"}, {"string", "object_name"}, {"bool", "found"},
+                             {"bool", "tracked"}, {"float64[8]", "corners"}, {"float64[9]", "homography"},
+                             {"int32", "inliers"}}));
 
   const std::string srv = read(pkg + "/srv/Detect.srv");
   const size_t sep = srv.find("\n---\n");

@@ -99,6 +99,7 @@ TEST_F(Wire, TypeNamesAreTheOnesRos2NodesUse) {
       {MessageType<msg::Odometry>::typeName(), "nav_msgs::msg::dds_::Odometry_"},
       {MessageType<msg::JointTrajectory>::typeName(), "trajectory_msgs::msg::dds_::JointTrajectory_"},
       {MessageType<msg::ObjectInfo>::typeName(), "refgrasp_msgs::msg::dds_::ObjectInfo_"},
+      {MessageType<msg::ObjectCorners>::typeName(), "refgrasp_msgs::msg::dds_::ObjectCorners_"},
       {MessageType<msg::DetectRequest>::typeName(), "refgrasp_msgs::srv::dds_::Detect_Request_"},
       {MessageType<msg::DetectResponse>::typeName(), "refgrasp_msgs::srv::dds_::Detect_Response_"},
   };
@@ -301,6 +302,29 @@ TEST_F(Wire, ObjectInfoDecodesAsItsMsgFile) {
   for (int i = 0; i < 9; ++i) EXPECT_DOUBLE_EQ(j["rotation"][i].get<double>(), kPose.R(i / 3, i % 3));
   for (int i = 0; i < 3; ++i) EXPECT_DOUBLE_EQ(j["translation"][i].get<double>(), kPose.t[i]);
   EXPECT_EQ(j["inliers"], 42);
+}
+
+TEST_F(Wire, ObjectCornersDecodesAsItsMsgFile) {
+  Writer<msg::ObjectCorners> w(*pp_, ddsTopicName(ns_ + "/object_corners"), QosProfile::reliable());
+  const std::string frame = "cam", name = "poster";
+  msg::ObjectCorners m{};
+  m.header = makeHeader(8.5, frame);
+  m.object_name = const_cast<char*>(name.c_str());
+  m.found = true;
+  m.tracked = true;
+  for (int i = 0; i < 8; ++i) m.corners[i] = 10.25 * i - 3.5;
+  for (int i = 0; i < 9; ++i) m.homography[i] = 0.5 * i + 0.125;
+  m.inliers = 77;
+  const json j = echo("rt" + ns_ + "/object_corners", "refgrasp_msgs::msg::dds_::ObjectCorners_",
+                      [&] { w.write(m); });
+  ASSERT_FALSE(j.is_null());
+  expectHeader(j["header"], 8.5, frame);
+  EXPECT_EQ(j["object_name"], name);
+  EXPECT_EQ(j["found"], true);
+  EXPECT_EQ(j["tracked"], true);
+  for (int i = 0; i < 8; ++i) EXPECT_DOUBLE_EQ(j["corners"][i].get<double>(), 10.25 * i - 3.5);
+  for (int i = 0; i < 9; ++i) EXPECT_DOUBLE_EQ(j["homography"][i].get<double>(), 0.5 * i + 0.125);
+  EXPECT_EQ(j["inliers"], 77);
 }
 
 TEST_F(Wire, RobotMessagesDecodeAsRos) {
