@@ -130,21 +130,27 @@ detector::ObjectModel twoDOnly(const detector::ObjectModel& m) {
 
 MethodOutcome scoreOutcome(const SetObject& obj, const SetFrame& f, const Eigen::Matrix3d& H,
                            const std::optional<Pose>& cMo) {
-  MethodOutcome m;
-  m.reported = true;
-  double err = 0;
-  for (int k = 0; k < 4; ++k)
-    err = std::max(err, (detector::applyHomography(H, obj.photo.corners_px[k]) - f.corners[k]).norm());
-  if (!std::isfinite(err)) err = 1e9;
-  m.corner_px = err;
-  const double diag = 0.5 * ((f.corners[2] - f.corners[0]).norm() + (f.corners[3] - f.corners[1]).norm());
-  m.found = err <= std::max(5.0, 0.1 * diag);
+  std::array<Eigen::Vector2d, 4> corners;
+  for (int k = 0; k < 4; ++k) corners[k] = detector::applyHomography(H, obj.photo.corners_px[k]);
+  MethodOutcome m = scoreCorners(f, corners);
   if (cMo) {
     m.has_pose = true;
     m.rot_deg = rotationError(*cMo, f.cMo) / kDeg;
     m.rel_t = translationError(*cMo, f.cMo) / f.cMo.t.norm();
     m.pose_ok = m.found && m.rot_deg < 2.0 && m.rel_t < 0.02;
   }
+  return m;
+}
+
+MethodOutcome scoreCorners(const SetFrame& f, const std::array<Eigen::Vector2d, 4>& corners) {
+  MethodOutcome m;
+  m.reported = true;
+  double err = 0;
+  for (int k = 0; k < 4; ++k) err = std::max(err, (corners[k] - f.corners[k]).norm());
+  if (!std::isfinite(err)) err = 1e9;
+  m.corner_px = err;
+  const double diag = 0.5 * ((f.corners[2] - f.corners[0]).norm() + (f.corners[3] - f.corners[1]).norm());
+  m.found = err <= std::max(5.0, 0.1 * diag);
   return m;
 }
 

@@ -122,6 +122,9 @@ std::vector<FrameOutcome> evaluateSet(const RealisticSet& set, const EvalOptions
 /// Scores one reported result (H: reference px -> image px; cMo when the method gave a pose).
 MethodOutcome scoreOutcome(const SetObject& obj, const SetFrame& f, const Eigen::Matrix3d& H,
                            const std::optional<Pose>& cMo);
+/// Scores reported pattern corners (TL, TR, BR, BL, image px) against the frame's: reported,
+/// corner_px and found (no pose figures).
+MethodOutcome scoreCorners(const SetFrame& f, const std::array<Eigen::Vector2d, 4>& corners);
 
 struct Tally {
   int n = 0, found_r = 0, found_c = 0, pose_r = 0, pose_c = 0, wrong_r = 0, wrong_c = 0;
