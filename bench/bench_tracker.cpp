@@ -55,7 +55,8 @@ void usage() {
       "Rows, detection with a prior region, at 640x480 (f 550 px) and 1280x720 (f 1100 px), the\n"
       "same scene (one period of the sway, --prior-frames frames), for the target registered with\n"
       "its pose (3D) and 2D-only: whole-frame detection and detection with the prior the pipeline\n"
-      "gives a re-detection (3D: the previous frame's true pose, TargetTrackerOptions' margins;\n"
+      "gives a re-detection, with ObjectPrior::max_scale --prior-max-scale (3D: the previous\n"
+      "frame's true pose, TargetTrackerOptions' margins;\n"
       "2D-only: the homography of the previous frame's true pose), each frame: thread CPU median,\n"
       "the stages (extraction / matching / pose + checks: the frame's CPU split as the detector's\n"
       "wall times split it, medians), detections, the largest corner error median / p90 (px) and,\n"
@@ -246,7 +247,7 @@ std::array<PriorStats, 4> priorRows(const std::string& texture, int frames, int 
 
 int main(int argc, char** argv) try {
   int frames = 120, threads = 1, prior_frames = 40;
-  double max_scale = detector::ObjectPrior{}.max_scale;
+  double max_scale = 0.4;  // ObjectPrior::max_scale of the prior-region rows
   std::string texture = "targets/cereal_box.png";
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];

@@ -418,6 +418,10 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
       std::optional<ObjectPrior> view_prior;
       if (prior_of[id]) view_prior = *prior_of[id];
       if (view_prior && view_prior->cMo) view_prior->cMo = *view_prior->cMo * views[k].oMv;
+      // Views are extracted at full resolution: the fused pose of the two-view box of the real
+      // clip (ctest BoxVideo) lost precision with downsampled views (docs/results.md "Detection
+      // with a prior region at 1280x720").
+      if (view_prior) view_prior->max_scale = 0;
       add(id, views_[id][k], view_prior ? &*view_prior : nullptr);
     }
   }

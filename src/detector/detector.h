@@ -90,16 +90,16 @@ struct ObjectPrior {
   /// planar reference, for one without a pose (2D-only, e.g. the homography tracker's): the
   /// region and the keypoint size range as cMo gives them. Ignored when cMo is used.
   std::optional<Eigen::Matrix3d> H;
-  /// Largest scale (scene px per reference px) at which a predicted region (cMo or H) is
+  /// > 0: largest scale (scene px per reference px) at which a predicted region (cMo or H) is
   /// extracted: when the prediction puts some of the pattern larger, the region is downsampled
   /// by that factor first (ExtractRegion::downsample), matched there, and the dense alignment
   /// refines the result on the full-resolution image with a template downsample^2 larger (the
   /// pixels the extraction saved). A pattern twice as large then costs about the same as one at
-  /// this scale. 0.4: SIFT doubles the scene, so its first octave still sees the pattern at 0.8
-  /// of the reference's pixels; the fastest and most precise on the ablation of docs/results.md
-  /// "Detection with a prior region at 1280x720" (0.3: the template grows too large; 0.5 and
-  /// up: too little saved). 0: never downsampled.
-  double max_scale = 0.4;
+  /// this scale. 0.4 is the value measured in docs/results.md "Detection with a prior region at
+  /// 1280x720" (SIFT doubles the scene, so its first octave still sees the pattern at 0.8 of the
+  /// reference's pixels). 0 (default): never downsampled; on degraded or real footage the
+  /// coarser extraction cost precision (same page). Not applied to a several-view object's views.
+  double max_scale = 0;
 };
 
 /// What to search in one frame. Default: every object in the whole image, one shared extraction.

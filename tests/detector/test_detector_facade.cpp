@@ -271,8 +271,8 @@ TEST(DetectorFacade, QueryWithSeveralObjects) {
   }
 }
 
-// A prior at 1280x720 (f 1100 px) where the poster, 0.5 m away, is seen larger than its
-// 400 px reference: the region is extracted downsampled (ObjectPrior::max_scale) and the dense
+// A prior at 1280x720 (f 1100 px) where the poster, 0.5 m away, is seen larger than its 400 px
+// reference: with ObjectPrior::max_scale 0.4 the region is extracted downsampled and the dense
 // alignment restores the full-resolution result, for a pose prior (3D) and an H prior (2D-only).
 TEST(DetectorFacade, PriorRegionAt1280x720IsDownsampledAndPrecise) {
   const Intrinsics cam = Intrinsics::pinhole(1280, 720, 1100, 639.5, 359.5);
@@ -297,6 +297,7 @@ TEST(DetectorFacade, PriorRegionAt1280x720IsDownsampledAndPrecise) {
   p.cMo = predicted;
   p.roi_margin = 0.5;  // servo::TargetTrackerOptions' re-detection margins
   p.scale_margin = 2;
+  p.max_scale = 0.4;
   q.priors = {p};
   const DetectionResult r3 = det3.detect(sc.image, cam, {}, q);
   ASSERT_TRUE(r3.ok) << r3.error;
