@@ -8,12 +8,17 @@
 // Then a 2D-only object (no reference pose: the homography tracker, servo/homography_tracker.h)
 // at 640x480 and 1280x720 on a slow sway: the tracking step and the pipeline per frame. Bar:
 // 2D-only tracking step >= 30 frames per second at 1280x720 on one core (thread CPU median).
+// Last, detection with a prior region (the re-detection servo::TargetTracker runs) against
+// whole-frame detection, on the same scene at 640x480 and 1280x720. Bar: prior-region detection
+// at 1280x720 within 1.3x of 640x480 (thread CPU median).
+#include <array>
 #include <opencv2/core.hpp>
 #include <cstdio>
 #include <string>
 
 #include "bench_util.h"
 #include "detector/detector.h"
+#include "detector/homography.h"
 #include "robot/sim/synthetic_scene.h"
 #include "robot/sim/synthetic_sequence.h"
 #include "servo/homography_tracker.h"
@@ -47,8 +52,22 @@ void usage() {
       "detection (wall and thread CPU medians, fps, cpu fps, frames followed, corner error median /\n"
       "90th percentile px) and the pipeline per frame (track, detect every frame).\n"
       "Bar: 2D-only tracking step >= 30 fps at 1280x720 on one core (thread CPU median).\n"
+      "Rows, detection with a prior region, at 640x480 (f 550 px) and 1280x720 (f 1100 px), the\n"
+      "same scene (one period of the sway, --prior-frames frames), for the target registered with\n"
+      "its pose (3D) and 2D-only: whole-frame detection and detection with the prior the pipeline\n"
+      "gives a re-detection, with ObjectPrior::max_scale --prior-max-scale (3D: the previous\n"
+      "frame's true pose, TargetTrackerOptions' margins;\n"
+      "2D-only: the homography of the previous frame's true pose), each frame: thread CPU median,\n"
+      "the stages (extraction / matching / pose + checks: the frame's CPU split as the detector's\n"
+      "wall times split it, medians), detections, the largest corner error median / p90 (px) and,\n"
+      "3D, the rotation (deg) and translation (%% of the distance) errors median / max; then the\n"
+      "1280/640 ratio of the CPU medians.\n"
+      "Bar: prior-region detection at 1280x720 within 1.3x of 640x480 (3D and 2D-only).\n"
       "Usage: bench_tracker [--frames N (default 120)] [--texture media/relative.png]\n"
+      "                     [--prior-frames N (default 40; 0: skip)] [--prior-max-scale S]\n"
       "                     [--threads N (default 1)] [--help]\n"
+      "--prior-max-scale S: ObjectPrior::max_scale of the prior-region rows (default 0.4; 0: the\n"
+      "region is never downsampled), for the ablation.\n"
       "--threads N: OpenCV's thread pool size (cv::setNumThreads). With 1 everything runs on the\n"
       "calling thread, so the thread CPU column is the whole cost and holds on a loaded machine.\n");
 }
@@ -135,10 +154,100 @@ void twoDRows(const std::string& texture, int frames, int width, int height, dou
   }
 }
 
+/// Detection costs and errors of one kind of registration (3D or 2D-only) at one resolution.
+struct PriorStats {
+  std::vector<double> cpu, extract, match, pose, corner_px, rot_deg, trans_pct;
+  int found = 0, frames = 0;
+};
+
+/// Medians of one row of the prior-region table.
+void printPriorRow(const std::string& name, const PriorStats& s, bool pose) {
+  std::printf("%-30s %8.2f %8.2f %7.2f %7.2f %5d/%-3d %7.3f / %-7.3f", name.c_str(), median(s.cpu),
+              median(s.extract), median(s.match), median(s.pose), s.found, s.frames, median(s.corner_px),
+              percentile(s.corner_px, 0.9));
+  if (pose)
+    std::printf(" %6.3f / %-6.3f %6.3f / %-6.3f", median(s.rot_deg), maxOf(s.rot_deg), median(s.trans_pct),
+                maxOf(s.trans_pct));
+  std::printf("\n");
+}
+
+/// Whole-frame and prior-region detection of the target (3D: whole, prior; 2D-only: whole, prior)
+/// on one period of the sway at one resolution. Returns the four rows' stats in that order.
+std::array<PriorStats, 4> priorRows(const std::string& texture, int frames, int width, int height, double f,
+                                    double max_scale) {
+  testing::TrackingSequenceSpec spec;
+  spec.frames = frames;
+  spec.texture = texture;
+  spec.camera = Intrinsics::pinhole(width, height, f, 0.5 * (width - 1), 0.5 * (height - 1));
+  spec.path = [](double t) { return testing::swayPath(t, 1.0); };
+  const testing::TrackingSequence seq = testing::renderTrackingSequence(spec);
+  const cv::Mat tex = testing::loadMedia(texture);
+  const detector::ObjectModel model3d = detector::textureObject("target", tex, spec.width_m);
+  detector::Detector det3, det2;
+  det3.addObject(model3d);
+  det2.addObject(detector::makeObjectModel("target", tex, std::nullopt, std::nullopt));
+  const servo::TargetTrackerOptions pipeline;  // the margins of a re-detection
+  auto corners = [&](const Pose& cMo) {
+    std::array<Eigen::Vector2d, 4> c;
+    for (size_t i = 0; i < 4; ++i) c[i] = seq.camera.project(cMo * model3d.target->corners_o[i]);
+    return c;
+  };
+  std::array<PriorStats, 4> rows;
+  for (size_t k = 1; k < seq.mono.size(); ++k) {
+    const cv::Mat& img = seq.mono[k].image;
+    const std::array<Eigen::Vector2d, 4> truth = corners(seq.truth[k]);
+    for (int r = 0; r < 4; ++r) {
+      const bool is3d = r < 2, prior = r % 2 == 1;
+      const detector::Detector& det = is3d ? det3 : det2;
+      detector::DetectionQuery q;
+      if (prior) {
+        detector::ObjectPrior p;
+        p.object = 0;
+        p.roi_margin = pipeline.prior_roi_margin;
+        p.scale_margin = pipeline.prior_scale_margin;
+        p.max_scale = max_scale;
+        if (is3d) {
+          p.cMo = seq.truth[k - 1];
+        } else {  // the homography the previous frame's pose gives (reference px -> image px)
+          const std::array<Eigen::Vector2d, 4> c = corners(seq.truth[k - 1]);
+          p.H = detector::fitHomographyLeastSquares({model3d.corners_px.begin(), model3d.corners_px.end()},
+                                                    {c.begin(), c.end()});
+        }
+        q.only_priors = true;
+        q.priors.push_back(p);
+      }
+      detector::DetectionResult res;
+      PriorStats& s = rows[static_cast<size_t>(r)];
+      s.cpu.push_back(bench::threadCpuMs([&] { res = det.detect(img, seq.camera, {}, q); }));
+      // The stages' CPU: the frame's CPU split in the proportions of the detector's wall times.
+      const double to_cpu = res.time_ms.total > 0 ? s.cpu.back() / res.time_ms.total : 0;
+      s.extract.push_back(res.time_ms.extract * to_cpu);
+      s.match.push_back(res.time_ms.match * to_cpu);
+      s.pose.push_back(res.time_ms.pose * to_cpu);
+      ++s.frames;
+      const std::optional<detector::Detection> d = res.find(0);
+      if (!d) continue;
+      ++s.found;
+      double e = 0;
+      for (size_t i = 0; i < 4; ++i) e = std::max(e, (d->corners[i] - truth[i]).norm());
+      s.corner_px.push_back(e);
+      if (d->cMo) {
+        s.rot_deg.push_back(rotationError(*d->cMo, seq.truth[k]) * 180 / M_PI);
+        s.trans_pct.push_back(100 * translationError(*d->cMo, seq.truth[k]) / seq.truth[k].t.norm());
+      }
+    }
+  }
+  const std::string res_name = std::to_string(width) + "x" + std::to_string(height);
+  const char* names[4] = {" 3D, whole frame", " 3D, prior region", " 2D-only, whole frame", " 2D-only, prior region"};
+  for (int r = 0; r < 4; ++r) printPriorRow(res_name + names[r], rows[static_cast<size_t>(r)], r < 2);
+  return rows;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) try {
-  int frames = 120, threads = 1;
+  int frames = 120, threads = 1, prior_frames = 40;
+  double max_scale = 0.4;  // ObjectPrior::max_scale of the prior-region rows
   std::string texture = "targets/cereal_box.png";
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -147,12 +256,16 @@ int main(int argc, char** argv) try {
       return 0;
     } else if (a == "--frames" && i + 1 < argc) {
       frames = static_cast<int>(bench::intArg("bench_tracker", "--frames", argv[++i], 2));
+    } else if (a == "--prior-frames" && i + 1 < argc) {
+      prior_frames = static_cast<int>(bench::intArg("bench_tracker", "--prior-frames", argv[++i], 0));
+    } else if (a == "--prior-max-scale" && i + 1 < argc) {
+      max_scale = bench::numberArg("bench_tracker", "--prior-max-scale", argv[++i], 0);
     } else if (a == "--threads" && i + 1 < argc) {
       threads = static_cast<int>(bench::intArg("bench_tracker", "--threads", argv[++i], 1));
     } else if (a == "--texture" && i + 1 < argc) {
       texture = argv[++i];
     } else {
-      bench::rejectArgument("bench_tracker", a, {"--frames", "--threads", "--texture"});
+      bench::rejectArgument("bench_tracker", a, {"--frames", "--prior-frames", "--prior-max-scale", "--threads", "--texture"});
     }
   }
   cv::setNumThreads(threads);
@@ -235,6 +348,22 @@ int main(int argc, char** argv) try {
               "corner px median/p90");
   twoDRows(texture, frames, 640, 480, 550);
   twoDRows(texture, frames, 1280, 720, 1100);
+
+  if (prior_frames < 2) return 0;
+  std::printf("\ndetection with a prior region, one period of the sway, %d frames (prior: the previous frame's truth)\n",
+              prior_frames);
+  std::printf("%-30s %8s %8s %7s %7s %9s %17s %15s %15s\n", "", "cpu ms", "extract", "match", "pose", "found",
+              "corner px med/p90", "rot deg med/max", "trans % med/max");
+  const std::array<PriorStats, 4> small = priorRows(texture, prior_frames, 640, 480, 550, max_scale);
+  const std::array<PriorStats, 4> large = priorRows(texture, prior_frames, 1280, 720, 1100, max_scale);
+  const char* names[4] = {"3D, whole frame", "3D, prior region", "2D-only, whole frame", "2D-only, prior region"};
+  bool met = true;
+  for (size_t r = 0; r < 4; ++r) {
+    const double ratio = median(large[r].cpu) / median(small[r].cpu);
+    std::printf("1280x720 / 640x480 CPU, %-22s %6.2f\n", names[r], ratio);
+    if (r % 2 == 1) met = met && ratio <= 1.3;
+  }
+  std::printf("bar prior-region detection at 1280x720 <= 1.3 x 640x480 (CPU): %s\n", met ? "MET" : "NOT MET");
   return 0;
 }
 catch (const std::exception& e) {  // a missing or unreadable input: one line, not an abort

@@ -54,6 +54,9 @@ std::string validateQuery(const DetectionQuery& q, int objects) {
              std::to_string(objects) + " registered)";
     if (seen[p.object]++) return field + "object: a second prior for object " + std::to_string(p.object);
     if (p.cMo && !p.cMo->isFinite()) return field + "cMo: must be finite";
+    if (p.H && (!p.H->allFinite() || std::abs(p.H->determinant()) < 1e-12))
+      return field + "H: must be finite and invertible";
+    if (!(std::isfinite(p.max_scale) && p.max_scale >= 0)) return field + "max_scale: must be >= 0";
     if (p.roi.width < 0 || p.roi.height < 0) return field + "roi: negative size";
     if (!(std::isfinite(p.roi_margin) && p.roi_margin >= 0)) return field + "roi_margin: must be >= 0";
     if (!(std::isfinite(p.scale_margin) && p.scale_margin >= 1))
@@ -189,6 +192,7 @@ void detectObject(const RegisteredObject& obj, int id, const DetectorOptions& op
   st.roi = search.roi;
   st.min_keypoint_px = search.region.min_size_px;
   st.max_keypoint_px = search.region.max_size_px;
+  st.downsample = search.region.downsample;
   st.scene_features = scene.size();
 
   auto t = Clock::now();
@@ -201,7 +205,16 @@ void detectObject(const RegisteredObject& obj, int id, const DetectorOptions& op
   st.rejected = m.rejected;
 
   t = Clock::now();
-  const CandidateContext ctx{obj, id, opt, scene, extraction ? &extraction->grid : nullptr, camera};
+  // A region extracted at 1/downsample of the resolution: the dense alignment, which gives the
+  // result its precision, may use a template downsample^2 larger (what the extraction saved), so
+  // that it is no coarser against the pattern in the scene than without the downsampling.
+  std::optional<DetectorOptions> finer;
+  if (search.region.downsample > 1) {
+    finer = opt;
+    const double d2 = search.region.downsample * search.region.downsample;
+    finer->dense.max_template_px = static_cast<int>(std::min(1e9, opt.dense.max_template_px * d2));
+  }
+  const CandidateContext ctx{obj, id, finer ? *finer : opt, scene, extraction ? &extraction->grid : nullptr, camera};
   ObjectTally tally;
   for (const MatchCandidate& matched : m.instances) tally.add(verifyCandidate(ctx, matched), &st, res);
   double spare_ms = 0;  // the spare candidate's matching: match time, not pose time
@@ -405,6 +418,10 @@ DetectionResult Detector::detectGray(const cv::Mat& gray, const Intrinsics& came
       std::optional<ObjectPrior> view_prior;
       if (prior_of[id]) view_prior = *prior_of[id];
       if (view_prior && view_prior->cMo) view_prior->cMo = *view_prior->cMo * views[k].oMv;
+      // Views are extracted at full resolution: the fused pose of the two-view box of the real
+      // clip (ctest BoxVideo) lost precision with downsampled views (docs/results.md "Detection
+      // with a prior region at 1280x720").
+      if (view_prior) view_prior->max_scale = 0;
       add(id, views_[id][k], view_prior ? &*view_prior : nullptr);
     }
   }

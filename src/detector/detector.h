@@ -86,6 +86,20 @@ struct ObjectPrior {
   cv::Rect roi;               ///< image px; non-empty: search here instead of the projection
   double roi_margin = 0.25;   ///< added on each side, fraction of the projection's larger side
   double scale_margin = 2.0;  ///< >= 1, see cMo
+  /// Predicted H (undistorted reference px -> undistorted scene px) of an object with a single
+  /// planar reference, for one without a pose (2D-only, e.g. the homography tracker's): the
+  /// region and the keypoint size range as cMo gives them. Ignored when cMo is used.
+  std::optional<Eigen::Matrix3d> H;
+  /// > 0: largest scale (scene px per reference px) at which a predicted region (cMo or H) is
+  /// extracted: when the prediction puts some of the pattern larger, the region is downsampled
+  /// by that factor first (ExtractRegion::downsample), matched there, and the dense alignment
+  /// refines the result on the full-resolution image with a template downsample^2 larger (the
+  /// pixels the extraction saved). A pattern twice as large then costs about the same as one at
+  /// this scale. 0.4 is the value measured in docs/results.md "Detection with a prior region at
+  /// 1280x720" (SIFT doubles the scene, so its first octave still sees the pattern at 0.8 of the
+  /// reference's pixels). 0 (default): never downsampled; on degraded or real footage the
+  /// coarser extraction cost precision (same page). Not applied to a several-view object's views.
+  double max_scale = 0;
 };
 
 /// What to search in one frame. Default: every object in the whole image, one shared extraction.
@@ -143,6 +157,7 @@ struct ObjectStats {
   cv::Rect roi;                  ///< image px searched (the whole image unless restricted)
   double min_keypoint_px = 0;    ///< keypoint size range searched (diameter, image px)
   double max_keypoint_px = 1e30;
+  double downsample = 1;         ///< the region was extracted at 1/downsample of the resolution
   int scene_features = 0;        ///< scene features the matcher saw (those of its region)
   int global_matches = 0;        ///< of them, passing the global ratio test
   int hypotheses_evaluated = 0;

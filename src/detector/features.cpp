@@ -54,6 +54,8 @@ Features extractSiftUnchecked(const cv::Mat& image, const SiftOptions& opt, cons
   refgrasp::check(std::isfinite(region.min_size_px) && !std::isnan(region.max_size_px) &&
                       region.min_size_px <= region.max_size_px,
                   "ExtractRegion.min_size_px", "must be finite and <= max_size_px");
+  refgrasp::check(std::isfinite(region.downsample) && region.downsample >= 1, "ExtractRegion.downsample",
+                  "must be finite and >= 1");
   if (region.whole()) return extractWhole(image, opt);
   const cv::Rect full(0, 0, image.cols, image.rows);
   const cv::Rect roi = region.roi.area() > 0 ? (region.roi & full) : full;
@@ -74,12 +76,28 @@ Features extractSiftUnchecked(const cv::Mat& image, const SiftOptions& opt, cons
   const int x0 = std::max(0, (roi.x - margin) / 32 * 32), y0 = std::max(0, (roi.y - margin) / 32 * 32);
   const cv::Rect crop = cv::Rect(x0, y0, roi.x + roi.width + margin - x0,
                                  roi.y + roi.height + margin - y0) & full;
-  Features c = extractWhole(image(crop), opt, region.min_size_px, region.max_size_px, roi - crop.tl());
+  cv::Mat work = image(crop);
+  cv::Rect work_roi = roi - crop.tl();
+  double sx = 1, sy = 1;  // input px per work px
+  if (region.downsample > 1) {
+    const cv::Size size(std::max(1, cvRound(crop.width / region.downsample)),
+                        std::max(1, cvRound(crop.height / region.downsample)));
+    cv::resize(image(crop), work, size, 0, 0, cv::INTER_AREA);
+    sx = static_cast<double>(crop.width) / size.width;
+    sy = static_cast<double>(crop.height) / size.height;
+    const int x0 = cvFloor(work_roi.x / sx), y0 = cvFloor(work_roi.y / sy);
+    work_roi = cv::Rect(x0, y0, cvCeil((work_roi.x + work_roi.width) / sx) - x0,
+                        cvCeil((work_roi.y + work_roi.height) / sy) - y0);
+  }
+  const double to_work = 1 / std::sqrt(sx * sy);  // keypoint sizes
+  Features c = extractWhole(work, opt, region.min_size_px * to_work, region.max_size_px * to_work, work_roi);
   f.descriptors.create(0, 128, CV_32F);
   for (int i = 0; i < c.size(); ++i) {
     cv::KeyPoint kp = c.keypoints[i];
-    kp.pt.x += static_cast<float>(crop.x);
-    kp.pt.y += static_cast<float>(crop.y);
+    // Work pixel w covers input pixels [w sx, (w + 1) sx): its centre is input (w + 0.5) sx - 0.5.
+    kp.pt.x = static_cast<float>((kp.pt.x + 0.5) * sx - 0.5 + crop.x);
+    kp.pt.y = static_cast<float>((kp.pt.y + 0.5) * sy - 0.5 + crop.y);
+    kp.size = static_cast<float>(kp.size / to_work);
     const bool inside = kp.pt.x >= roi.x - 0.5f && kp.pt.x < roi.x + roi.width - 0.5f &&
                         kp.pt.y >= roi.y - 0.5f && kp.pt.y < roi.y + roi.height - 0.5f;
     if (!inside || kp.size < region.min_size_px || kp.size > region.max_size_px) continue;

@@ -65,7 +65,11 @@ struct ExtractRegion {
   /// least this far inside roi (e.g. a predicted pattern's box grown by a margin), so the
   /// context the crop adds around roi for them is reduced by it. 0: every keypoint in roi.
   double inner_margin_px = 0;
-  bool whole() const { return roi.area() == 0 && min_size_px <= 0 && max_size_px >= 1e30; }
+  /// >= 1: the crop is resampled to 1/downsample of its size (area average) before SIFT, for a
+  /// region whose pattern is predicted larger than its features need (ObjectPrior::max_scale).
+  /// Positions and sizes are still reported in input px; 1 = the input's resolution.
+  double downsample = 1;
+  bool whole() const { return roi.area() == 0 && min_size_px <= 0 && max_size_px >= 1e30 && downsample == 1; }
 };
 
 /// Deterministic SIFT on an 8-bit grayscale image (CV_8UC1; colour is converted).

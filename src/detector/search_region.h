@@ -15,7 +15,8 @@ struct Search {
   /// Both ask for the same features (one extraction serves both).
   bool sameExtraction(const Search& o) const {
     return region.roi == o.region.roi && region.min_size_px == o.region.min_size_px &&
-           region.max_size_px == o.region.max_size_px && region.inner_margin_px == o.region.inner_margin_px;
+           region.max_size_px == o.region.max_size_px && region.inner_margin_px == o.region.inner_margin_px &&
+           region.downsample == o.region.downsample;
   }
 };
 

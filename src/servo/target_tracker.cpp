@@ -101,13 +101,13 @@ struct EyesDetection {
   detector::EyesUsed eyes = detector::EyesUsed::kNone;
 };
 
-/// Where to detect an object: around a predicted pose (left frame), in a region of the left
-/// image (a 2D-only object's predicted corners; the right eye searches its whole frame), or,
-/// with neither, in the whole frame.
+/// Where to detect an object: around a predicted pose (left frame), around a 2D-only object's
+/// predicted homography in the left image (the right eye searches its whole frame), or, with
+/// neither, in the whole frame.
 struct Search {
   std::optional<Pose> cMo;
-  std::optional<cv::Rect> roi;
-  bool prior() const { return cMo.has_value() || roi.has_value(); }
+  std::optional<Eigen::Matrix3d> H;  ///< undistorted reference px -> undistorted left image px
+  bool prior() const { return cMo.has_value() || H.has_value(); }
 };
 
 /// The bounding box of corners grown by `margin` x its larger side on each side, in the image.
@@ -282,8 +282,10 @@ struct TargetTracker::Impl {
             p.cMo = eyes[e].lMe.inverse() * *r->cMo;
             p.roi_margin = opt.prior_roi_margin;
             p.scale_margin = opt.prior_scale_margin;
-          } else if (r->roi && e == 0) {
-            p.roi = *r->roi;
+          } else if (r->H && e == 0) {
+            p.H = *r->H;
+            p.roi_margin = opt.prior_roi_margin;
+            p.scale_margin = opt.prior_scale_margin;
           } else {
             p.roi = cv::Rect(0, 0, eyes[e].camera.width, eyes[e].camera.height);
           }
@@ -432,8 +434,13 @@ struct TargetTracker::Impl {
     Search s;
     if (t.htracker) {
       if (k.h && t.confirmed && !due) return std::nullopt;
-      if (k.h) s.roi = cornerRegion(k.h->corners, opt.prior_roi_margin, left);
-      else if (k.predH && recent) s.roi = cornerRegion(cornersUnderH(*k.predH, t.corners_ref, left), opt.prior_roi_margin, left);
+      // The homography gives the detector the region and the keypoint sizes; one whose corners
+      // give no usable region is searched in the whole frame.
+      if (k.h) {
+        if (cornerRegion(k.h->corners, opt.prior_roi_margin, left)) s.H = k.h->H;
+      } else if (k.predH && recent && cornerRegion(cornersUnderH(*k.predH, t.corners_ref, left), opt.prior_roi_margin, left)) {
+        s.H = *k.predH;
+      }
       return s;
     }
     if (!t.tracker[0]) return s;  // detect-only: whole frame

@@ -9,6 +9,7 @@
 
 #include "robot/sim/synthetic_scene.h"
 #include "detector/detector.h"
+#include "detector/homography.h"
 
 using namespace refgrasp;
 using namespace refgrasp::detector;
@@ -242,7 +243,7 @@ TEST(DetectorFacade, QueryWithSeveralObjects) {
     DetectionQuery q;
     std::string error;
   };
-  std::vector<Bad> bad(5);
+  std::vector<Bad> bad(7);
   bad[0].q.priors = {p, p};
   bad[0].error = "query.priors[1].object: a second prior for object 0";
   bad[1].q.priors = {p};
@@ -256,12 +257,80 @@ TEST(DetectorFacade, QueryWithSeveralObjects) {
   bad[3].error = "query.priors[0].cMo: must be finite";
   bad[4].q.roi = cv::Rect(10, 10, 0, 5);
   bad[4].error = "query.roi: empty rectangle";
+  bad[5].q.priors = {p};
+  bad[5].q.priors[0].H = Eigen::Matrix3d::Zero();
+  bad[5].error = "query.priors[0].H: must be finite and invertible";
+  bad[6].q.priors = {p};
+  bad[6].q.priors[0].max_scale = -1;
+  bad[6].error = "query.priors[0].max_scale: must be >= 0";
   for (const Bad& b : bad) {
     const DetectionResult e = det.detect(img, cam, {}, b.q);
     EXPECT_FALSE(e.ok);
     EXPECT_EQ(e.error, b.error);
     EXPECT_TRUE(e.detections.empty());
   }
+}
+
+// A prior at 1280x720 (f 1100 px) where the poster, 0.5 m away, is seen larger than its 400 px
+// reference: with ObjectPrior::max_scale 0.4 the region is extracted downsampled and the dense
+// alignment restores the full-resolution result, for a pose prior (3D) and an H prior (2D-only).
+TEST(DetectorFacade, PriorRegionAt1280x720IsDownsampledAndPrecise) {
+  const Intrinsics cam = Intrinsics::pinhole(1280, 720, 1100, 639.5, 359.5);
+  const cv::Mat& tex = poster().texture;
+  SceneSpec spec;
+  spec.cMo = Pose::fromRotationVector({0.2, -0.25, 0.1}, {0.03, -0.02, 0.5});
+  spec.seed = 607;
+  const RenderedScene sc = renderTarget(cam, tex, kWidth, kWidth * tex.rows / tex.cols, spec);
+  // A prediction 1 cm and 3 degrees off (a tracker's last pose after a short loss).
+  const Pose predicted = Pose::fromRotationVector(spec.cMo.rotationVector() + Eigen::Vector3d(0.03, -0.04, 0.02),
+                                                  spec.cMo.t + Eigen::Vector3d(0.01, -0.005, 0.005));
+  auto cornerError = [&](const Detection& d) {
+    double e = 0;
+    for (int i = 0; i < 4; ++i) e = std::max(e, (d.corners[i] - sc.corners[i]).norm());
+    return e;
+  };
+  const Detector det3 = posterDetector();
+  DetectionQuery q;
+  q.only_priors = true;
+  ObjectPrior p;
+  p.object = 0;
+  p.cMo = predicted;
+  p.roi_margin = 0.5;  // servo::TargetTrackerOptions' re-detection margins
+  p.scale_margin = 2;
+  p.max_scale = 0.4;
+  q.priors = {p};
+  const DetectionResult r3 = det3.detect(sc.image, cam, {}, q);
+  ASSERT_TRUE(r3.ok) << r3.error;
+  const std::optional<Detection> d3 = r3.find(0);
+  ASSERT_TRUE(d3 && d3->cMo);
+  EXPECT_GT(r3.stats[0].downsample, 2.0);  // the poster spans ~440 px: 1.1 reference px per px
+  EXPECT_LT(cornerError(*d3), 0.15);
+  EXPECT_LT(rotationError(*d3->cMo, spec.cMo), 0.05 * kDeg);
+  EXPECT_LT(translationError(*d3->cMo, spec.cMo), 0.0005 * spec.cMo.t.norm());
+
+  // 2D-only: the prior is the homography the predicted pose gives.
+  Detector det2;
+  const ObjectModel flat = makeObjectModel("poster", tex, std::nullopt, std::nullopt);
+  det2.addObject(flat);
+  const ObjectModel model3d = textureObject("poster", tex, kWidth);
+  std::vector<Eigen::Vector2d> ref, img;
+  for (int i = 0; i < 4; ++i) {
+    ref.push_back(flat.corners_px[i]);
+    img.push_back(cam.project(predicted * model3d.target->corners_o[i]));
+  }
+  p.cMo.reset();
+  p.H = fitHomographyLeastSquares(ref, img);
+  q.priors = {p};
+  const DetectionResult r2 = det2.detect(sc.image, cam, {}, q);
+  ASSERT_TRUE(r2.ok) << r2.error;
+  const std::optional<Detection> d2 = r2.find(0);
+  ASSERT_TRUE(d2);
+  EXPECT_GT(r2.stats[0].downsample, 2.0);
+  EXPECT_LT(cornerError(*d2), 0.3);
+  EXPECT_TRUE(contains(r2.stats[0].roi, sc.corners)) << r2.stats[0].roi;
+  std::printf("1280x720 prior: downsample %.2f (3D) %.2f (2D-only), corner error %.3f / %.3f px, rotation %.4f deg\n",
+              r3.stats[0].downsample, r2.stats[0].downsample, cornerError(*d3), cornerError(*d2),
+              rotationError(*d3->cMo, spec.cMo) / kDeg);
 }
 
 namespace {

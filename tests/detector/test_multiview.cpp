@@ -305,7 +305,7 @@ TEST_F(MultiView, APriorOnTheObjectGuidesEveryView) {
   const cv::Mat img = renderScene(cam, box_->placed(cMo), 950);
   DetectionQuery near;
   near.only_priors = true;
-  near.priors.push_back({id, cMo * Pose::fromRotationVector({0.02, -0.03, 0}, {0.01, 0, 0.02}), {}, 0.25, 2.0});
+  near.priors.push_back({id, cMo * Pose::fromRotationVector({0.02, -0.03, 0}, {0.01, 0, 0.02}), {}, 0.25, 2.0, std::nullopt, 0});
   const DetectionResult r = det.detect(img, cam, {}, near);
   ASSERT_TRUE(r.ok);
   const auto d = r.find(id);
