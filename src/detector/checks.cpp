@@ -79,7 +79,15 @@ void placeTwoD(const CandidateContext& ctx, const MatchCandidate& cand, const De
     }
     const double radius = std::clamp(3 * std::sqrt(sq / cand.inliers.size()), 1.0, opt.match.ransac_reproj_px);
     const auto refit = refitUnderHomography(*obj.uncapped_index, ctx.scene, *ctx.grid, opt.match, cand.H, radius);
-    if (refit && refit->matches > static_cast<int>(cand.inliers.size())) d->H = refit->H;
+    // A refinement: features matched within `radius` of where H puts them cannot move the
+    // pattern further than that; a refit that does fitted other features (a blurred scene's
+    // fine ones mislocated) and is not used.
+    double moved = 0;
+    if (refit)
+      for (int i = 0; i < 4; ++i)
+        moved = std::max(moved, (applyHomography(refit->H, obj.corners_und_px[i]) -
+                                 applyHomography(cand.H, obj.corners_und_px[i])).norm());
+    if (refit && refit->matches > static_cast<int>(cand.inliers.size()) && moved <= radius) d->H = refit->H;
   }
   for (int i = 0; i < 4; ++i) d->corners[i] = distortPixel(ctx.camera, applyHomography(d->H, obj.corners_und_px[i]));
 }
