@@ -198,23 +198,9 @@ DenseRefineResult refineOnce(const std::vector<cv::Mat>& ref_pyramid, const cv::
   const int cy1 = std::min(scene.rows - 1, static_cast<int>(std::ceil(sy1 + margin)));
   if (cx1 - cx0 < 8 || cy1 - cy0 < 8) return res;
   const cv::Rect crect(cx0, cy0, cx1 - cx0 + 1, cy1 - cy0 + 1);
-  // A template coarser than the pattern in the scene (max_template_px) meets the crop brought
-  // down to about its resolution, by whole octaves: ECC samples the crop at the template's pixels
-  // alone, and a crop 2^k times finer aliases there and pulls the fit a fraction of a template
-  // pixel (2^k crop px) off.
-  const double coarsening = s * std::sqrt(a_scene / a_ref);
-  int down = coarsening >= 2 ? static_cast<int>(std::floor(std::log2(coarsening))) : 0;
-  cv::Mat scene_crop = scene(crect);
-  double f = 1;  // crop px per scene px (a crop pixel u at level k sits at scene px 2^k u + c0)
-  for (; down > 0 && scene_crop.cols >= 32 && scene_crop.rows >= 32; --down, f *= 0.5) {
-    cv::Mat next;
-    cv::pyrDown(scene_crop, next);
-    scene_crop = next;
-  }
   Eigen::Matrix3d B = Eigen::Matrix3d::Identity();  // scene px -> crop px
-  B(0, 0) = B(1, 1) = f;
-  B(0, 2) = -f * cx0;
-  B(1, 2) = -f * cy0;
+  B(0, 2) = -cx0;
+  B(1, 2) = -cy0;
 
   Eigen::Matrix3d W = B * H * A;
   W /= W(2, 2);
@@ -237,10 +223,10 @@ DenseRefineResult refineOnce(const std::vector<cv::Mat>& ref_pyramid, const cv::
   // the polygon is moved there by the initial warp (a template-sized mask threw, so every polygon
   // region's refinement failed).
   cv::Mat scene_poly_mask;
-  if (mask_polygon) cv::warpPerspective(mask, scene_poly_mask, warp, scene_crop.size(), cv::INTER_NEAREST);
+  if (mask_polygon) cv::warpPerspective(mask, scene_poly_mask, warp, crect.size(), cv::INTER_NEAREST);
   const cv::TermCriteria stop(cv::TermCriteria::COUNT + cv::TermCriteria::EPS, opt.max_iterations,
                               opt.epsilon);
-  cv::Mat templ = ref_pyramid[L](trect);
+  cv::Mat templ = ref_pyramid[L](trect), scene_crop = scene(crect);
   if (normalise) {
     templ = normaliseLocally(templ, opt.normalize_sigma_px);
     scene_crop = normaliseLocally(scene_crop, opt.normalize_sigma_px);
@@ -260,7 +246,7 @@ DenseRefineResult refineOnce(const std::vector<cv::Mat>& ref_pyramid, const cv::
       if (mask_polygon) cv::bitwise_and(kept, mask, kept);
       // ECC's mask lives in the scene (input) image: the kept template moved there.
       cv::Mat scene_mask;
-      cv::warpPerspective(kept, scene_mask, warp, scene_crop.size(), cv::INTER_NEAREST);
+      cv::warpPerspective(kept, scene_mask, warp, crect.size(), cv::INTER_NEAREST);
       res.correlation = cv::findTransformECC(templ, scene_crop, warp,
                                              cv::MOTION_HOMOGRAPHY, stop, scene_mask,
                                              opt.gauss_filter_size);

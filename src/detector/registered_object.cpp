@@ -1,7 +1,5 @@
 #include "detector/registered_object.h"
 
-#include <limits>
-
 #include <algorithm>
 #include <cmath>
 #include <opencv2/imgproc.hpp>
@@ -44,15 +42,8 @@ RegisteredObject registerObject(const ObjectModel& object, const DetectorOptions
   for (int i = 0; i < 4; ++i)
     obj.corners_und_px[i] =
         object.camera ? object.camera->undistortPixel(object.corners_px[i]) : object.corners_px[i];
-  MatchOptions uncapped = opt.match;
-  uncapped.max_reference_features = std::numeric_limits<int>::max();
-  ReferenceIndex all = buildReferenceIndex(f, polygon, uncapped);
   obj.index = buildReferenceIndex(std::move(f), polygon, opt.match);
   if (object.target) obj.index.rectify_px = rectification(*object.target, obj.index.diagonal_px);
-  if (all.features.size() > obj.index.features.size()) {
-    all.rectify_px = obj.index.rectify_px;
-    obj.uncapped_index = std::move(all);
-  }
   obj.polygon_und_px = obj.index.polygon_px;
   obj.periods = repeatPeriods(obj.index);
   obj.pyramid = buildReferencePyramid(object.reference);

@@ -24,9 +24,6 @@ namespace refgrasp::detector {
 struct RegisteredObject {
   ObjectModel model;
   ReferenceIndex index;
-  /// Every reference feature inside the pattern (index without its cap), when the cap left some
-  /// out: a 2D-only pattern's final feature fit (refitUnderHomography) uses them all.
-  std::optional<ReferenceIndex> uncapped_index;
   std::array<Eigen::Vector2d, 4> corners_und_px;  ///< pattern corners TL, TR, BR, BL, und ref px
   std::vector<Eigen::Vector2d> polygon_und_px;    ///< pattern region, und ref px
   std::vector<cv::Mat> pyramid;  ///< reference pyramid (level 0 = the reference image)
