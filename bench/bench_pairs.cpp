@@ -1,6 +1,7 @@
 // refgrasp vs the classic OpenCV pipeline on photo pairs (issue 7, src/eval/pairs_eval.h): a
-// reference photo and a scene photo of a planar picture, 2D only, in five families (viewpoint,
-// zoom+rotation, blur, light, JPEG) at five levels each; scored by the reference's corners mapped
+// reference photo and a scene photo of a planar picture, 2D only, in seven families (viewpoint,
+// zoom+rotation, blur, light, JPEG, and near-identity pairs at full resolution under other light
+// or JPEG) at five levels each; scored by the reference's corners mapped
 // by the reported homography. Prints a markdown table per family and level.
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -24,11 +25,12 @@ namespace {
 void usage() {
   std::printf(
       "bench_pairs: refgrasp vs the classic OpenCV pipeline (cv::SIFT, ratio 0.8, RANSAC 3 px,\n"
-      ">= 10 inliers) on photo pairs of planar pictures (10 pictures x 5 families x 5 levels per\n"
+      ">= 10 inliers) on photo pairs of planar pictures (10 pictures x 7 families x 5 levels per\n"
       "seed), each reference registered 2D-only; scored by the worst of its 4 corners mapped by\n"
       "the reported homography. One thread each (cv::setNumThreads(1)); times are thread CPU time.\n"
       "Usage: bench_pairs [--seeds N (1)] [--first-seed S (1001 = the report split; develop on 1)]\n"
-      "       [--family viewpoint|zoom+rotation|blur|light|jpeg (that one alone)] [--verbose (one\n"
+      "       [--family viewpoint|zoom+rotation|blur|light|jpeg|near-light|near-jpeg (that one\n"
+      "       alone)] [--verbose (one\n"
       "       line per pair)] [--tolerance PX (3)] [--detector-config FILE] [--csv FILE] [--dump DIR (write the\n"
       "       pairs of the first seed as DIR/<family>_<level>_<picture>_{ref,scene}.png, no\n"
       "       evaluation)] [--diagnose (per pair of the first seed: the matcher's candidate, its\n"
@@ -68,7 +70,7 @@ int main(int argc, char** argv) try {
       for (int f = 0; f < eval::kPairFamilies; ++f)
         if (name == eval::pairFamilyName(static_cast<eval::PairFamily>(f))) family = f;
       if (family < 0) {
-        std::fprintf(stderr, "bench_pairs: --family: expected viewpoint, zoom+rotation, blur, light or jpeg, got '%s'\n",
+        std::fprintf(stderr, "bench_pairs: --family: expected viewpoint, zoom+rotation, blur, light, jpeg, near-light or near-jpeg, got '%s'\n",
                      name.c_str());
         return 2;
       }

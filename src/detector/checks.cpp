@@ -6,6 +6,7 @@
 #include "core/geometry.h"
 #include "detector/cylinder_detection.h"
 #include "detector/homography.h"
+#include "detector/matching.h"
 #include "detector/periods.h"
 #include "detector/realign.h"
 #include "detector/sanity.h"
@@ -48,19 +49,34 @@ CheckOutcome checkPose(const CandidateContext& ctx, const MatchCandidate& cand, 
 }
 
 // 2D-only objects: H is the dense alignment's when it converged (every pixel of the pattern, not
-// a few keypoints) on a template not much coarser than the scene, the features' otherwise.
+// a few keypoints) on a template not much coarser than the scene, the features' otherwise,
+// refitted to every reference feature (not only the strongest, index's cap) that agrees with it.
 void placeTwoD(const CandidateContext& ctx, const MatchCandidate& cand, const DenseRefineResult* dense, Detection* d) {
   const RegisteredObject& obj = ctx.object;
   const DetectorOptions& opt = ctx.opt;
+  bool dense_placed = false;
   if (opt.dense.enabled && obj.dense_usable && !ctx.scene.image.empty()) {
     const DenseRefineResult dr = dense ? *dense : refineDense(obj, cand.H, ctx.scene.image, ctx.camera, opt.dense);
-    if (dr.ok && dr.level >= 0) {
-      std::array<Eigen::Vector2d, 4> q;
-      for (int i = 0; i < 4; ++i) q[i] = applyHomography(dr.H, obj.corners_und_px[i]);
-      const double coarsening =
-          std::ldexp(1.0, dr.level) * std::sqrt(std::abs(signedArea(q)) / std::abs(signedArea(obj.corners_und_px)));
-      if (coarsening <= opt.dense.max_2d_coarsening) d->H = dr.H;
+    if (dr.ok && dr.level >= 0 && densePixelInScene(obj, dr) <= opt.dense.max_2d_coarsening) {
+      d->H = dr.H;
+      dense_placed = true;
     }
+  }
+  if (!dense_placed && obj.uncapped_index && ctx.grid && !cand.inliers.empty()) {
+    // The search radius: 3 sigma of the features' fit, at least 1 px (SIFT's localisation), at
+    // most the matcher's RANSAC threshold.
+    const double radius =
+        std::clamp(3 * inlierRmsPx(obj.index, ctx.scene, cand), 1.0, opt.match.ransac_reproj_px);
+    const auto refit = refitUnderHomography(*obj.uncapped_index, ctx.scene, *ctx.grid, opt.match, cand.H, radius);
+    // A refinement: features matched within `radius` of where H puts them cannot move the
+    // pattern further than that; a refit that does fitted other features (a blurred scene's
+    // fine ones mislocated) and is not used.
+    double moved = 0;
+    if (refit)
+      for (int i = 0; i < 4; ++i)
+        moved = std::max(moved, (applyHomography(refit->H, obj.corners_und_px[i]) -
+                                 applyHomography(cand.H, obj.corners_und_px[i])).norm());
+    if (refit && refit->matches > static_cast<int>(cand.inliers.size()) && moved <= radius) d->H = refit->H;
   }
   for (int i = 0; i < 4; ++i) d->corners[i] = distortPixel(ctx.camera, applyHomography(d->H, obj.corners_und_px[i]));
 }

@@ -562,14 +562,21 @@ namespace {
 
 /// The per-call context: scene descriptors for the kernels, size floor, bounds, and the
 /// a-contrario background model measured on this frame. nn: the global 2-NN of the scene.
-Context makeContext(const ReferenceIndex& ref, const Features& scene, const GridIndex& grid, const MatchOptions& opt,
-                    MatchRejects* rejects, std::vector<NearestTwo>* nn) {
+// The context of the local searches alone (no global matches, no background model).
+Context localContext(const ReferenceIndex& ref, const Features& scene, const GridIndex& grid, const MatchOptions& opt,
+                     MatchRejects* rejects) {
   Context cx{ref, scene, grid, opt, integerDescriptors(scene.descriptors, false), rejects, 0, 0, {}};
   double min_size = 1e9;
   for (const auto& k : scene.keypoints) min_size = std::min<double>(min_size, k.size);
   cx.min_scene_size = 0.8 * min_size;
   cx.max_dd2 = opt.max_descriptor_distance * opt.max_descriptor_distance;
   cx.bounds = cv::Rect2d(-0.5, -0.5, scene.image_size.width, scene.image_size.height);
+  return cx;
+}
+
+Context makeContext(const ReferenceIndex& ref, const Features& scene, const GridIndex& grid, const MatchOptions& opt,
+                    MatchRejects* rejects, std::vector<NearestTwo>* nn) {
+  Context cx = localContext(ref, scene, grid, opt, rejects);
   *nn = nearestTwo(ref.descriptors, cx.scene_desc);
   if (std::isfinite(opt.max_log10_nfa)) {
     // Background model of the a-contrario test, measured on this frame: scene features per px^2
@@ -651,6 +658,48 @@ std::optional<MatchCandidate> matchUnderHomography(const ReferenceIndex& ref, co
                                                    const GridIndex& grid, const MatchOptions& opt,
                                                    const Eigen::Matrix3d& H) {
   return matchUnderHomographies(ref, scene, grid, opt, {H})[0];
+}
+
+double inlierRmsPx(const ReferenceIndex& ref, const Features& scene, const MatchCandidate& cand) {
+  if (cand.inliers.empty()) return 0;
+  double sq = 0;
+  for (const Correspondence& c : cand.inliers)
+    sq += (applyHomography(cand.H, pt(ref.features.keypoints[c.ref])) - pt(scene.keypoints[c.scene])).squaredNorm();
+  return std::sqrt(sq / cand.inliers.size());
+}
+
+std::optional<FeatureRefit> refitUnderHomography(const ReferenceIndex& ref, const Features& scene,
+                                                 const GridIndex& grid, const MatchOptions& opt,
+                                                 const Eigen::Matrix3d& H, double radius_px) {
+  if (ref.features.size() < 4 || scene.size() < 4 || !H.allFinite()) return std::nullopt;
+  MatchRejects rejects;
+  const Context cx = localContext(ref, scene, grid, opt, &rejects);
+  std::vector<LocalMatch> m;
+  localSearch(cx, Predictor::homography(H), nullptr, [&](const Vec2&) { return radius_px; }, &m);
+  std::vector<Vec2> a, b;
+  for (const auto& x : m) {
+    a.push_back(pt(ref.features.keypoints[x.ref]));
+    b.push_back(pt(scene.keypoints[x.scene]));
+  }
+  const int floor = std::max(4, opt.min_inliers);
+  if (static_cast<int>(a.size()) < floor) return std::nullopt;
+  FeatureRefit out;
+  out.H = planeAffineUnlessPerspective(cx, fitHomographyLeastSquares(a, b), a, b);
+  if (!out.H.allFinite()) return std::nullopt;
+  double sq = 0;
+  for (size_t k = 0; k < a.size(); ++k) sq += (applyHomography(out.H, a[k]) - b[k]).squaredNorm();
+  const double tight = 3 * std::sqrt(sq / a.size());
+  std::vector<Vec2> ka, kb;
+  for (size_t k = 0; k < a.size(); ++k)
+    if ((applyHomography(out.H, a[k]) - b[k]).norm() <= tight) {
+      ka.push_back(a[k]);
+      kb.push_back(b[k]);
+    }
+  if (static_cast<int>(ka.size()) < floor) return std::nullopt;
+  out.H = planeAffineUnlessPerspective(cx, fitHomographyLeastSquares(ka, kb), ka, kb);
+  out.matches = static_cast<int>(ka.size());
+  if (!out.H.allFinite()) return std::nullopt;
+  return out;
 }
 
 std::vector<std::optional<MatchCandidate>> matchUnderHomographies(const ReferenceIndex& ref, const Features& scene,

@@ -155,6 +155,24 @@ MatchResult matchObjectUnchecked(const ReferenceIndex& ref, const Features& scen
 std::optional<MatchCandidate> matchUnderHomography(const ReferenceIndex& ref, const Features& scene,
                                                    const GridIndex& grid, const MatchOptions& opt,
                                                    const Eigen::Matrix3d& H);
+/// RMS distance (scene px) between cand's inlier scene features and their reference features
+/// mapped by cand.H: how precisely the features locate the pattern; 0 without inliers.
+double inlierRmsPx(const ReferenceIndex& ref, const Features& scene, const MatchCandidate& cand);
+/// A feature fit refitted to more features (checks.cpp: a 2D-only pattern's corners).
+struct FeatureRefit {
+  Eigen::Matrix3d H = Eigen::Matrix3d::Identity();  ///< reference px -> scene px
+  int matches = 0;                                  ///< the matches it was fitted to
+};
+/// The final fit of an alignment H that is already precise (its features' own fit), over every
+/// feature of `ref` (ReferenceIndex::uncapped when given: the strongest features alone are few
+/// of the fine, best localised ones on a large reference): the local search within radius_px of
+/// the predictions under H (the matcher's orientation, scale, descriptor and local-ratio tests,
+/// one reference feature per scene feature), the homography least-squares fitted to those
+/// matches (plane-affine for a small pattern, as the matcher fits), tightened to 3 sigma of that
+/// fit and fitted again. nullopt under opt.min_inliers matches or when a fit fails.
+std::optional<FeatureRefit> refitUnderHomography(const ReferenceIndex& ref, const Features& scene,
+                                                 const GridIndex& grid, const MatchOptions& opt,
+                                                 const Eigen::Matrix3d& H, double radius_px);
 /// matchUnderHomography for several alignments at once (the frame's background model is
 /// measured once); out[k] for Hs[k].
 std::vector<std::optional<MatchCandidate>> matchUnderHomographies(const ReferenceIndex& ref, const Features& scene,

@@ -10,9 +10,21 @@ namespace refgrasp::detector {
 
 namespace {
 
-// A dense refinement that converged well but was refused for moving a corner too far.
-bool refusedForDistance(const DenseRefineResult& d, const DenseRefineOptions& opt) {
-  return !d.ok && d.corner_shift_px > opt.max_corner_shift_px && d.correlation >= opt.min_correlation;
+// How much coarser than the features' localisation (their fit's RMS residual) the template of a
+// dense alignment may be and still question the features' fit. A template whose pixel is more
+// than ten times coarser belongs to a large pattern under the template size cap in a sharp scene,
+// where hundreds of features place it to a tenth of a template pixel and the alignment does no
+// better than half of one; under blur the features' residuals grow and a coarse template, which
+// loses nothing to blur, still questions them (results.md "Near-identity pairs at full
+// resolution": the ratios measured there, 25-60 against 2-6).
+constexpr double kMaxDensePixelOverFeatureRms = 10;
+
+// A dense refinement that converged well but was refused for moving a corner too far, and is fine
+// enough to say that the features' fit (rms_px: its RMS residual) is off by that much.
+bool refusedForDistance(const RegisteredObject& obj, const DenseRefineResult& d, const DenseRefineOptions& opt,
+                        double rms_px) {
+  return !d.ok && d.corner_shift_px > opt.max_corner_shift_px && d.correlation >= opt.min_correlation &&
+         densePixelInScene(obj, d) <= kMaxDensePixelOverFeatureRms * rms_px;
 }
 
 // The dense refinement from H with room to move: half the pattern's diagonal (ok = false when
@@ -57,7 +69,7 @@ MatchCandidate realign(const RegisteredObject& obj, const DetectorOptions& opt, 
                        DenseRefineResult* dense) {
   const cv::Mat& image = scene.image;
   *dense = refineDense(obj, cand.H, image, camera, opt.dense);
-  if (!refusedForDistance(*dense, opt.dense)) return cand;
+  if (!refusedForDistance(obj, *dense, opt.dense, inlierRmsPx(obj.index, scene, cand))) return cand;
   const DenseRefineResult wide = wideRefine(obj, opt, cand.H, image, camera);
   if (!wide.ok) return cand;
   const std::optional<MatchCandidate> again = matchUnderHomography(obj.index, scene, grid, opt.match, wide.H);
@@ -72,7 +84,7 @@ MatchCandidate realign(const RegisteredObject& obj, const DetectorOptions& opt, 
   if (!(after.ok && after.correlation > before.correlation))
     return adoptWideAlignment(obj, opt.verify, cand, wide, image, camera, dense);
   *dense = refineDense(obj, again->H, image, camera, opt.dense);
-  if (!refusedForDistance(*dense, opt.dense)) return *again;
+  if (!refusedForDistance(obj, *dense, opt.dense, inlierRmsPx(obj.index, scene, *again))) return *again;
   return adoptWideAlignment(obj, opt.verify, *again, wideRefine(obj, opt, again->H, image, camera), image,
                             camera, dense);
 }

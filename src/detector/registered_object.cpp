@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <optional>
 #include <opencv2/imgproc.hpp>
 
 #include "core/geometry.h"
@@ -42,8 +44,16 @@ RegisteredObject registerObject(const ObjectModel& object, const DetectorOptions
   for (int i = 0; i < 4; ++i)
     obj.corners_und_px[i] =
         object.camera ? object.camera->undistortPixel(object.corners_px[i]) : object.corners_px[i];
+  // A 2D-only pattern's final fit uses every reference feature (RegisteredObject::uncapped_index).
+  std::optional<ReferenceIndex> all;
+  if (!object.target) {
+    MatchOptions uncapped = opt.match;
+    uncapped.max_reference_features = std::numeric_limits<int>::max();
+    all = buildReferenceIndex(f, polygon, uncapped);
+  }
   obj.index = buildReferenceIndex(std::move(f), polygon, opt.match);
   if (object.target) obj.index.rectify_px = rectification(*object.target, obj.index.diagonal_px);
+  if (all && all->features.size() > obj.index.features.size()) obj.uncapped_index = std::move(*all);
   obj.polygon_und_px = obj.index.polygon_px;
   obj.periods = repeatPeriods(obj.index);
   obj.pyramid = buildReferencePyramid(object.reference);
@@ -78,6 +88,13 @@ double patternDiagonal(const RegisteredObject& obj, const Eigen::Matrix3d& H) {
   std::array<Eigen::Vector2d, 4> q;
   for (int i = 0; i < 4; ++i) q[i] = applyHomography(H, obj.corners_und_px[i]);
   return 0.5 * ((q[2] - q[0]).norm() + (q[3] - q[1]).norm());
+}
+
+double densePixelInScene(const RegisteredObject& obj, const DenseRefineResult& d) {
+  if (d.level < 0) return 0;
+  std::array<Eigen::Vector2d, 4> q;
+  for (int i = 0; i < 4; ++i) q[i] = applyHomography(d.H, obj.corners_und_px[i]);
+  return std::ldexp(1.0, d.level) * std::sqrt(std::abs(signedArea(q)) / std::abs(signedArea(obj.corners_und_px)));
 }
 
 double inViewFraction(const RegisteredObject& obj, const Eigen::Matrix3d& H, const Intrinsics& camera) {

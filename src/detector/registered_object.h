@@ -24,6 +24,9 @@ namespace refgrasp::detector {
 struct RegisteredObject {
   ObjectModel model;
   ReferenceIndex index;
+  /// A 2D-only object's every reference feature inside the pattern (index without its cap), when
+  /// the cap left some out: its final feature fit (refitUnderHomography) uses them all.
+  std::optional<ReferenceIndex> uncapped_index;
   std::array<Eigen::Vector2d, 4> corners_und_px;  ///< pattern corners TL, TR, BR, BL, und ref px
   std::vector<Eigen::Vector2d> polygon_und_px;    ///< pattern region, und ref px
   std::vector<cv::Mat> pyramid;  ///< reference pyramid (level 0 = the reference image)
@@ -56,6 +59,11 @@ Eigen::Vector2d distortPixel(const Intrinsics& cam, const Eigen::Vector2d& und);
 
 /// The pattern's diagonal under H (und scene px): the mean of its two corner diagonals.
 double patternDiagonal(const RegisteredObject& obj, const Eigen::Matrix3d& H);
+
+/// The size of one pixel of the template `d` was aligned on (its pyramid level), in scene px:
+/// 2^level times the pattern's scale under d.H (square root of the area ratio, scene over
+/// reference). A dense alignment localises no finer than that. 0 when d has no level.
+double densePixelInScene(const RegisteredObject& obj, const DenseRefineResult& d);
 
 /// Fraction of the pattern's projection under H (und scene px) inside the frame; 0 when it is
 /// degenerate or crosses the vanishing line.

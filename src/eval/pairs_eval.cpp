@@ -46,6 +46,8 @@ const char* pairFamilyName(PairFamily f) {
     case PairFamily::kBlur: return "blur";
     case PairFamily::kLight: return "light";
     case PairFamily::kJpeg: return "jpeg";
+    case PairFamily::kNearLight: return "near-light";
+    case PairFamily::kNearJpeg: return "near-jpeg";
   }
   return "?";
 }
@@ -58,6 +60,72 @@ const double kRoll[kPairLevels] = {10, 20, 30, 40, 50};            // deg
 const double kBlur[kPairLevels] = {1, 2, 3, 4, 5};                 // defocus sigma, px
 const double kGain[kPairLevels] = {0.7, 0.55, 0.4, 0.3, 0.2};
 const int kJpeg[kPairLevels] = {40, 25, 15, 8, 4};
+const int kNearWidth[kPairLevels] = {800, 1000, 1200, 1400, 1600};  // px
+const int kNearJpeg[kPairLevels] = {90, 70, 50, 30, 10};
+
+// The reference's own camera: a mild look (gain and gamma within 10 %, noise 0.5-1.5, JPEG 90).
+void applyReferenceLook(cv::Mat& reference, std::mt19937_64& rng) {
+  testing::CameraLook look;
+  look.gain = uni(rng, 0.9, 1.1);
+  look.gamma = uni(rng, 0.9, 1.1);
+  look.noise_sigma = uni(rng, 0.5, 1.5);
+  look.jpeg_quality = 90;
+  testing::applyCameraLook(reference, look, rng);
+}
+
+// The scene camera's mild look (gain within 10 %, noise 1-2.5, defocus up to 0.6 px, JPEG 85),
+// which each family then changes in its own way.
+testing::CameraLook mildSceneLook(std::mt19937_64& rng) {
+  testing::CameraLook look;
+  look.gain = uni(rng, 0.9, 1.1);
+  look.noise_sigma = uni(rng, 1, 2.5);
+  look.defocus_sigma_px = uni(rng, 0, 0.6);
+  look.jpeg_quality = 85;
+  return look;
+}
+
+// The near-identity families (pairs_eval.h): the picture at `width` px as the reference, the
+// scene a second photo of it from nearly the same place.
+ViewPair makeNearIdentityPair(const cv::Mat& tex, ViewPair p, int width, std::mt19937_64& rng) {
+  const double r = static_cast<double>(width) / tex.cols;
+  cv::Mat base;
+  cv::resize(tex, base, cv::Size(width, static_cast<int>(std::lround(r * tex.rows))), 0, 0,
+             r > 1 ? cv::INTER_CUBIC : cv::INTER_AREA);
+  p.reference = base.clone();
+  applyReferenceLook(p.reference, rng);
+  const int margin = base.cols / 4;
+  sim::TexturedPlane plane;
+  plane.texture = testing::photoClutterBackground(rng(), base.cols + 2 * margin, base.rows + 2 * margin, {p.texture});
+  base.copyTo(plane.texture(cv::Rect(margin, margin, base.cols, base.rows)));
+  plane.width_m = plane.texture.cols * kMetresPerTexel;
+  plane.height_m = plane.texture.rows * kMetresPerTexel;
+  const double s = uni(rng, 0.97, 1.03), tilt = uni(rng, 0, 2) * kDeg, roll = uni(rng, -2, 2) * kDeg;
+  const double phi = uni(rng, 0, 2 * M_PI);
+  const Eigen::Matrix3d R =
+      axisAngle(Eigen::Vector3d::UnitZ(), roll) * axisAngle(Eigen::Vector3d(std::cos(phi), std::sin(phi), 0), tilt);
+  const double f = 1.2 * base.cols;
+  p.camera = Intrinsics::pinhole(base.cols, base.rows, f, 0.5 * (base.cols - 1), 0.5 * (base.rows - 1));
+  const double z = f * kMetresPerTexel / s;
+  const Eigen::Vector3d ray(uni(rng, -5, 5) / f, uni(rng, -5, 5) / f, 1);
+  // The plane frame's origin is the canvas centre, the picture's: aimed at it.
+  plane.cMp = Pose(R, z * ray);
+  p.scene = sim::renderView(p.camera, {plane}, cv::Mat());
+  testing::CameraLook look = mildSceneLook(rng);
+  if (p.family == PairFamily::kNearLight) {
+    look.gain = uni(rng, 0.6, 1.4);
+    look.gamma = uni(rng, 0.7, 1.4);
+    look.gradient = uni(rng, 0.1, 0.3);
+    look.gradient_angle_rad = uni(rng, 0, 2 * M_PI);
+  } else {
+    look.jpeg_quality = kNearJpeg[p.level];
+  }
+  testing::applyCameraLook(p.scene, look, rng);
+  Eigen::Matrix3d A = Eigen::Matrix3d::Identity();  // reference px -> canvas texels
+  A(0, 2) = margin;
+  A(1, 2) = margin;
+  p.H_true = sim::textureToImage(p.camera, plane) * A;
+  return p;
+}
 
 }  // namespace
 
@@ -69,6 +137,8 @@ std::string pairLevelLabel(PairFamily f, int level) {
     case PairFamily::kBlur: std::snprintf(buf, sizeof buf, "sigma %g px", kBlur[level]); break;
     case PairFamily::kLight: std::snprintf(buf, sizeof buf, "gain %g", kGain[level]); break;
     case PairFamily::kJpeg: std::snprintf(buf, sizeof buf, "quality %d", kJpeg[level]); break;
+    case PairFamily::kNearLight: std::snprintf(buf, sizeof buf, "%d px", kNearWidth[level]); break;
+    case PairFamily::kNearJpeg: std::snprintf(buf, sizeof buf, "quality %d", kNearJpeg[level]); break;
   }
   return buf;
 }
@@ -80,20 +150,16 @@ ViewPair makeViewPair(const std::string& texture, PairFamily family, int level, 
   p.texture = texture;
   p.family = family;
   p.level = level;
+  if (family == PairFamily::kNearLight) return makeNearIdentityPair(tex, p, kNearWidth[level], rng);
+  if (family == PairFamily::kNearJpeg)
+    return makeNearIdentityPair(tex, p, static_cast<int>(std::lround(uni(rng, 800, 1600))), rng);
   // Reference: the picture alone, at most 640 px wide, with a mild look of its own camera.
   const double r = std::min(1.0, 640.0 / tex.cols);
   if (r < 1)
     cv::resize(tex, p.reference, cv::Size(), r, r, cv::INTER_AREA);
   else
     p.reference = tex.clone();
-  {
-    testing::CameraLook look;
-    look.gain = uni(rng, 0.9, 1.1);
-    look.gamma = uni(rng, 0.9, 1.1);
-    look.noise_sigma = uni(rng, 0.5, 1.5);
-    look.jpeg_quality = 90;
-    testing::applyCameraLook(p.reference, look, rng);
-  }
+  applyReferenceLook(p.reference, rng);
   const double rx = static_cast<double>(p.reference.cols) / tex.cols, ry = static_cast<double>(p.reference.rows) / tex.rows;
   // The picture on a wall of clutter three times its size.
   sim::TexturedPlane plane;
@@ -119,11 +185,7 @@ ViewPair makeViewPair(const std::string& texture, PairFamily family, int level, 
   plane.cMp = Pose(R, z * ray - R * P);
   p.scene = sim::renderView(p.camera, {plane}, cv::Mat());
   // The scene's look: mild, but for the family's own change.
-  testing::CameraLook look;
-  look.gain = uni(rng, 0.9, 1.1);
-  look.noise_sigma = uni(rng, 1, 2.5);
-  look.defocus_sigma_px = uni(rng, 0, 0.6);
-  look.jpeg_quality = 85;
+  testing::CameraLook look = mildSceneLook(rng);
   if (family == PairFamily::kBlur) look.defocus_sigma_px = kBlur[level];
   if (family == PairFamily::kLight) {
     look.gain = kGain[level];

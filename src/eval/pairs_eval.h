@@ -1,17 +1,25 @@
 #pragma once
 // Photo pairs: a reference photo and one scene photo of the same planar picture, 2D
 // only, scored by the corners of the reference mapped by the reported homography, the way
-// affine-viewpoint benchmarks score image pairs. Five families of pairs, each at five levels of
-// growing difficulty:
+// affine-viewpoint benchmarks score image pairs. Seven families of pairs, each at five levels:
 //   viewpoint       the picture seen at 20, 30, 40, 50, 60 deg from its normal
 //   zoom+rotation   the camera closer (1.3x .. 2.9x the reference's scale) and rolled 10 .. 50 deg
 //   blur            defocus sigma 1 .. 5 px
 //   light           darker exposure (gain 0.7 .. 0.2) with a brightness gradient
 //   jpeg            JPEG quality 40, 25, 15, 8, 4
+//   near-light      near-identity at full resolution (below), 800, 1000, 1200, 1400, 1600 px
+//                   wide, under other light (gain 0.6-1.4, gamma 0.7-1.4, a gradient of 10-30 %)
+//   near-jpeg       near-identity at full resolution, 800-1600 px wide, JPEG quality 90, 70, 50,
+//                   30, 10
 // The picture is a real photograph of media/photos/ or a pattern of media/targets/, set in a
 // canvas three times its size filled with photo clutter (a poster on a wall); the reference is
 // the picture alone, fronto-parallel, at most 640 px wide, with a mild camera look; the scene is
 // 640x480 (f = 700 px) rendered exactly (sim::renderView) with its own look.
+// Near-identity families: the picture resized to the level's width is the reference (with the
+// same mild look); the scene, of the reference's size (f = 1.2 x its width), shows it on a wall
+// of clutter a quarter of its size wider on each side, seen from straight ahead at a scale of
+// 0.97-1.03, rolled up to 2 deg, tilted up to 2 deg and shifted up to 5 px: two photos of one
+// poster taken one after the other, where hundreds of features agree.
 //
 // Pixels: H_true maps reference px -> scene px (x_scene ~ H x_ref, pixel centres).
 #include <Eigen/Core>
@@ -27,8 +35,8 @@
 
 namespace refgrasp::eval {
 
-enum class PairFamily { kViewpoint, kZoomRotation, kBlur, kLight, kJpeg };
-constexpr int kPairFamilies = 5;
+enum class PairFamily { kViewpoint, kZoomRotation, kBlur, kLight, kJpeg, kNearLight, kNearJpeg };
+constexpr int kPairFamilies = 7;
 constexpr int kPairLevels = 5;
 const char* pairFamilyName(PairFamily f);
 /// What level 0..4 of the family means, e.g. "2.1x, 30 deg".
@@ -39,7 +47,7 @@ struct ViewPair {
   PairFamily family = PairFamily::kViewpoint;
   int level = 0;
   cv::Mat reference;        ///< CV_8UC1
-  cv::Mat scene;            ///< CV_8UC1, 640x480
+  cv::Mat scene;            ///< CV_8UC1, 640x480 (near-identity families: the reference's size)
   Intrinsics camera;        ///< the scene's (pinhole)
   Eigen::Matrix3d H_true;   ///< reference px -> scene px
 };
