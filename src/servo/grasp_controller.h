@@ -100,9 +100,9 @@ struct GraspOptions {
   /// reachable goal).
   double unreachable_patience_s = 1.0;
   /// Reachability is judged only on estimates from within reestimate_range_m of the base (m,
-  /// horizontal): an unreachable pre-grasp pose from further (a plane detected 2-3 m away at
-  /// 35 px, its pose flipped) drives the base towards the target's position, the head on it,
-  /// until it is reestimate_stop_m away, and the estimates made from there decide.
+  /// horizontal): an unreachable pre-grasp pose from further (a small face detected from afar
+  /// can come out with its plane flipped) drives the base towards the target's position, the
+  /// head on it, until it is reestimate_stop_m away, and the estimates made from there decide.
   double reestimate_range_m = 2.0;
   double reestimate_stop_m = 1.5;
   double search_timeout_s = 120;  ///< a 10 x 10 m room with four tables takes a minute to tour
