@@ -65,6 +65,8 @@ void GraspOptions::check() const {
   check(finiteIn(reacquire_timeout_s, 0, 60), o + "reacquire_timeout_s", "must be in [0, 60]");
   check(max_searches >= 1 && max_searches <= 100, o + "max_searches", "must be in [1, 100]");
   check(finiteIn(unreachable_patience_s, 0, 60), o + "unreachable_patience_s", "must be in [0, 60]");
+  check(finiteIn(reestimate_stop_m, 0.3, 20) && finiteIn(reestimate_range_m, reestimate_stop_m + 0.1, 20),
+        o + "reestimate_range_m", "must be in [reestimate_stop_m + 0.1, 20], reestimate_stop_m in [0.3, 20]");
   for (const auto& [name, v] : {std::pair<const char*, double>{"search_timeout_s", search_timeout_s},
                                 {"approach_timeout_s", approach_timeout_s},
                                 {"align_timeout_s", align_timeout_s},
@@ -155,6 +157,7 @@ void GraspController::enter(GraspPhase p, Seconds t, const std::string& outcome,
   detail_.clear();
   lost_since_.reset();
   unreachable_since_.reset();
+  closer_ = false;
   it->event = std::string(toString(p)) + " (" + outcome + ")";
   report_.phases[toString(p)].outcome.clear();
   if (p == GraspPhase::kSearch) {
@@ -378,10 +381,25 @@ void GraspController::decideApproach(Seconds t, GraspIteration* it) {
   const Pose wMg = *wMo_ * oMg_;
   const Pose wMed = wMg * along(-pregrasp_m_);
   BaseGoal g = baseGoalFor(arm_task_.kinematics(), wMed, goal_ ? goal_->reach.q : Eigen::VectorXd());
+  const Pose wMb_now = wMb();
   if (g.reach.ok) {
     unreachable_since_.reset();
     goal_ = std::move(g);
-  } else {
+  } else if (!goal_ && (closer_ || (wMo_->t - wMb_now.t).head<2>().norm() > opt_.reestimate_range_m)) {
+    // Too far to judge: closer, the target's centre ahead at reestimate_stop_m, arm still.
+    const Eigen::Vector3d bP = wMb_now.inverse() * (*wMo_ * centre_o_);
+    const BaseCommand b = base_task_.compute(bP, bP, opt_.reestimate_stop_m);
+    closer_ = std::abs(b.depth_error_m) > opt_.base.waypoint_tolerance_m;
+    if (closer_) {
+      unreachable_since_.reset();
+      robot_.arm().setJointVelocity(Eigen::VectorXd::Zero(robot_.model().arm.dof()));
+      robot_.base().setVelocity(b.v_mps, b.w_radps);
+      pointHead(wMb_now, b.v_mps, b.w_radps);
+      detail_ = "closer";
+      return;
+    }
+  }
+  if (!g.reach.ok) {
     if (!unreachable_since_) unreachable_since_ = t;
     if (t - *unreachable_since_ >= opt_.unreachable_patience_s) {
       finish(false, "unreachable", at("no arm configuration reaches the pre-grasp pose", t), t, it);
@@ -393,7 +411,6 @@ void GraspController::decideApproach(Seconds t, GraspIteration* it) {
       return;
     }
   }
-  const Pose wMb_now = wMb();
   BaseCommand b = base_task_.approach(wMb_now, goal_->wMb);
   detail_ = toString(b.stage);
   // The arm goes to its reaching configuration meanwhile (joint space, capped speed).

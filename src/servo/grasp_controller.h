@@ -99,6 +99,12 @@ struct GraspOptions {
   /// error, must not end the run); meanwhile the robot holds still (or keeps the last
   /// reachable goal).
   double unreachable_patience_s = 1.0;
+  /// Reachability is judged only on estimates from within reestimate_range_m of the base (m,
+  /// horizontal): an unreachable pre-grasp pose from further (a small face detected from afar
+  /// can come out with its plane flipped) drives the base towards the target's position, the
+  /// head on it, until it is reestimate_stop_m away, and the estimates made from there decide.
+  double reestimate_range_m = 2.0;
+  double reestimate_stop_m = 1.5;
   double search_timeout_s = 120;  ///< a 10 x 10 m room with four tables takes a minute to tour
   double approach_timeout_s = 30;
   double align_timeout_s = 15;
@@ -241,6 +247,7 @@ class GraspController {
   // Phase state.
   std::optional<BaseGoal> goal_;
   std::optional<Seconds> unreachable_since_;  ///< approach: first estimate in a row without a reach
+  bool closer_ = false;  ///< approach: driving nearer a far target before judging reachability
   Seconds grasp_started_ = 0;
   GraspSubStep grasp_step_ = GraspSubStep::kReach;
   Seconds step_started_ = 0;

@@ -294,8 +294,11 @@ void BeliefSearch::miss(const Pose& wMc) {
     for (int k = 0; k < kFacings; ++k) {
       const size_t j = static_cast<size_t>(i * kFacings + k);
       const double p = pd * facingFactor(k, to_camera);
-      mass_[j] *= 1 - novelPd(j, p);
-      best_pd_[j] = std::max(best_pd_[j], p);
+      const double novel = novelPd(j, p);
+      mass_[j] *= 1 - novel;
+      // What the looks so far would have found together: a view repeated adds its novel part
+      // only, so repeats stop adding once they reach pd / repeat_discount.
+      best_pd_[j] = std::max(p, 1 - (1 - best_pd_[j]) * (1 - novel));
     }
   }
 }

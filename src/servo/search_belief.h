@@ -60,9 +60,10 @@ struct BeliefSearchOptions {
   double candidate_boost = 4;      ///< unconfirmed candidate that did not confirm: its cells x this
   double candidate_radius_m = 0.4;
   /// A miss from a view no better than one already tried says little: a look counts with
-  /// pd - repeat_discount x (the best pd of an earlier look at that cell), at least 0. Frames of
-  /// one viewpoint fail together (the same size, angle and blur), so a search that only repeats
-  /// looks from afar learns little and moves closer instead.
+  /// pd - repeat_discount x (what the earlier looks at that state would have found together, at
+  /// least the best one's pd), at least 0. Frames of one viewpoint fail together (the same size,
+  /// angle and blur), so a search that only repeats looks from afar learns little and moves
+  /// closer instead; repeats of one view explain at most pd / repeat_discount in all.
   double repeat_discount = 0.7;
   /// A target facing direction d (its front's normal) is seen fully from within facing_full_rad
   /// of d, not at all beyond facing_none_rad (the detector reaches ~60 deg of obliquity, the
@@ -166,7 +167,8 @@ class BeliefSearch {
   std::vector<double> line_viewpoints_;
   SearchBelief grid_;              ///< geometry and heights; p unused
   std::vector<int> cell_index_;    ///< grid cells that can hold the target
-  /// Per state (listed cell x kFacings + facing): prior, unexplained mass, best pd so far.
+  /// Per state (listed cell x kFacings + facing): prior, unexplained mass, and what the looks so
+  /// far would have found together (at least the best one's pd).
   std::vector<double> prior_, mass_, best_pd_;
   double prior_total_ = 0;
   std::vector<Eigen::Vector2d> viewpoints_;

@@ -391,6 +391,45 @@ TEST(GraspController, CameraErrorsAndUnusableFramesStopTheRobot) {
   }
 }
 
+// A far estimate is not judged: on photo_fruits_far (the photograph 2.2 m from the start) the
+// estimates are tilted 70 deg (no arm configuration reaches that pre-grasp pose) while the base is
+// more than 1.8 m from the target. Instead of ending "unreachable" where it stands, the base
+// drives towards the target (detail "closer", confirmed frames only) and the estimates made from
+// there, right again, lead to the grasp.
+TEST(GraspController, AnUnreachableEstimateFromAfarDrivesCloserBeforeItIsJudged) {
+  const Target target = loadTarget(scenarioPath("photo_fruits_far"));
+  FaultyEstimator est(target.object, FaultyEstimator::Fault::kTilted);
+  est.when = [&](const robot::StereoFrame& f) {
+    if (f.truth.empty() || !f.capture.wMb_odom || !f.capture.bMc) return false;
+    const Pose wMo = *f.capture.wMb_odom * *f.capture.bMc * f.truth.front().cMo;
+    return (wMo.t - f.capture.wMb_odom->t).head<2>().norm() > 1.8;
+  };
+  int closer = 0;
+  double first_range = -1, last_range = -1;
+  const auto hook = [&](const servo::GraspStep& s, const sim::SimEnon&) {
+    const servo::GraspIteration& it = s.it;
+    if (it.detail == "closer" && it.wMo) {
+      ++closer;
+      const double range = (it.wMo->t - it.state.wMb_odom.t).head<2>().norm();
+      if (first_range < 0) first_range = range;
+      last_range = range;
+    }
+    return true;
+  };
+  servo::GraspOptions o;
+  const GraspRun r = runGrasp(target, est, o, 60, false, hook);
+  SCOPED_TRACE(refgrasp::testing::formatted("%d steps closer, %.2f -> %.2f m, %d tilted estimates, outcome %s",
+                                            closer, first_range, last_range, est.faults,
+                                            r.report.success ? "grasped" : r.report.failure.c_str()));
+  EXPECT_GT(est.faults, 0);
+  EXPECT_GT(closer, 5);
+  EXPECT_GT(first_range, o.reestimate_range_m);
+  EXPECT_LT(last_range, first_range - 0.2);
+  EXPECT_TRUE(r.violations.empty()) << r.violations.front();
+  EXPECT_TRUE(r.collisions.empty()) << r.collisions.front().message();
+  EXPECT_TRUE(r.report.success) << r.report.failure;
+}
+
 // One poor estimate must not end the run: the estimates that confirm the target and start the
 // approach are tilted 70 deg (no arm configuration reaches that pre-grasp pose) until 0.5 s into
 // the approach; the robot holds still meanwhile (no target-driven motion towards an unreachable

@@ -210,6 +210,22 @@ TEST(SearchBelief, RepeatingALookFromTheSameViewExplainsLittleMore) {
   EXPECT_NEAR(second / after_one, 0.3 * first / 0.5, 0.02);
 }
 
+TEST(SearchBelief, RepeatsOfOneViewStopAddingOnceTheyReachPdOverTheDiscount) {
+  const robot::EnonModel m = enon();
+  BeliefSearch b(m, m.head.rig.left, room(), BeliefSearchOptions());
+  b.reset(base(0, 0, 0));
+  const Pose far = camera(m, 1.0, 0, 0, 0, 0.15);  // table A 3.1-3.8 m away: pd small
+  for (int k = 0; k < 10; ++k) b.miss(far);
+  const double after_ten = massNear(b, 4.4, 0, 0.8);
+  for (int k = 0; k < 40; ++k) b.miss(far);
+  const double after_fifty = massNear(b, 4.4, 0, 0.8);
+  // Together the repeats explain at most pd / repeat_discount of each state: forty more add
+  // under 1 % of what the first ten explained (each repeat adding 30 % of pd, they would explain
+  // most of what is left).
+  EXPECT_GT(0.5 - after_ten, 0.02);
+  EXPECT_LT(after_ten - after_fifty, 0.01 * (0.5 - after_ten)) << after_ten << " " << after_fifty;
+}
+
 TEST(SearchBelief, TheSearchIsOverOnlyWhenEveryTableWasSeenWellFromItsFront) {
   const robot::EnonModel m = enon();
   BeliefSearchOptions o;
