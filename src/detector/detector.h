@@ -97,8 +97,10 @@ struct ObjectPrior {
   /// pixels the extraction saved). A pattern twice as large then costs about the same as one at
   /// this scale. 0.4 is the value measured in docs/results.md "Detection with a prior region at
   /// 1280x720" (SIFT doubles the scene, so its first octave still sees the pattern at 0.8 of the
-  /// reference's pixels). 0 (default): never downsampled; on degraded or real footage the
-  /// coarser extraction cost precision (same page). Not applied to a several-view object's views.
+  /// reference's pixels, enough for a reference sharper than the scene, e.g. a rendered
+  /// texture). 0 (default): never downsampled; a reference no sharper than the scene (a frame of
+  /// the same video) keeps too few matches when the region is downsampled (same page). Not
+  /// applied to a several-view object's views.
   double max_scale = 0;
 };
 
