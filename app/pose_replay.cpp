@@ -34,6 +34,9 @@ one, then the target is tracked frame to frame (KLT features on the object's sur
 with the reference image for a planar object; a 2D-only object, without reference_pose, by its
 homography, aligned with the reference every frame); when the tracker loses it the frame is detected
 again, in the predicted region first, then in the whole frame. --no-track detects every frame.
+--prior-max-scale S (default 0: off): a predicted region whose pattern is larger than S scene px
+per reference px is searched downsampled (0.4: a 1280x720 frame's re-detection costs about what
+a 640x480 one's does; for references sharper than the frames).
 --input: a recording folder, a video file, an image folder (sorted; optional stamps.txt), a
 folder with left/ and right/ image folders (with --stereo), or any source spec:
 )";
@@ -94,6 +97,7 @@ int poseReplay(int argc, char** argv) {
   std::string camera_file, input, outdir, rig_file;
   DetectorCli detector_cli;
   bool no_track = false, png_frames = false;
+  double prior_max_scale = 0;
   app.add_option("--object", object_files, "object definition YAML (repeat for several objects)")
       ->required()
       ->expected(1)
@@ -106,6 +110,10 @@ int poseReplay(int argc, char** argv) {
   app.add_option("--stereo", rig_file, "stereo rig YAML: replay both eyes (fused poses, left camera frame)");
   app.add_flag("--no-track", no_track, "detect on every frame (no tracking between detections)");
   app.add_flag("--frames", png_frames, "overlay as OUTDIR/frames/NNNNNN.png instead of overlay.mp4");
+  app.add_option("--prior-max-scale", prior_max_scale,
+                 "re-detection in a predicted region: downsampled where the pattern is larger than "
+                 "this (scene px per reference px); 0: never (default)")
+      ->check(tool::Finite(0, 100));
   detector_cli.add(app);
   tool::parse(app, argc, argv);
   const bool stereo = !rig_file.empty();
@@ -143,6 +151,7 @@ int poseReplay(int argc, char** argv) {
 
   servo::ReplayOptions ropt;
   ropt.track = !no_track;
+  ropt.pipeline.prior_max_scale = prior_max_scale;
   servo::PoseReplay replay(*det, ropt, servo::planarTrackerFactory(ropt.pipeline.tracker, det.get()));
   std::unique_ptr<servo::ReplayReport> report;
   try {

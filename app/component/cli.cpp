@@ -37,7 +37,9 @@ Topics (ROS names; on DDS "rt" + name):
 The detector works on the newest frame; frames arriving meanwhile are dropped (counted).
 --track: the robot's pipeline instead (servo::TargetTracker): a detection is published once the
 next one confirms it, then the target is tracked frame to frame (a few ms) and re-detected only
-when the tracker loses it, so poses come out at the camera's rate.
+when the tracker loses it, so poses come out at the camera's rate. --prior-max-scale S (with
+--track; default 0: off): a predicted region whose pattern is larger than S scene px per reference
+px is searched downsampled (0.4: a 1280x720 frame's re-detection costs about a 640x480 one's).
 Bad frames give one warning (rate-limited) on stderr and found = false; serving goes on.
 Detector options: --detector-config FILE (config/detector.yaml lists every field).
 Stops on SIGINT/SIGTERM and prints {"frames_received",...} as one JSON line on stdout.
@@ -71,7 +73,16 @@ int runVisionComponent(int argc, char** argv) {
   app.add_flag("--track", track,
                "the robot's pipeline: a detection confirmed by the next one, then tracked between "
                "detections, so poses come out at the camera's rate");
+  double prior_max_scale = 0;
+  auto* prior_opt = app.add_option("--prior-max-scale", prior_max_scale,
+                                   "with --track: a predicted region whose pattern is larger than this "
+                                   "(scene px per reference px) is searched downsampled; 0: never (default)")
+                        ->check(tool::Finite(0, 100));
   tool::parse(app, argc, argv);
+  if (*prior_opt && !track) {
+    std::fprintf(stderr, "vision_component: --prior-max-scale: needs --track (it sets the tracker's re-detection)\n");
+    return 2;
+  }
   const int env_domain = tool::checkDdsEnvironment();
   if (!*domain_opt) domain = env_domain;
   // Until the component serves (objects loaded, participant created), a signal ends it at once.
@@ -84,6 +95,7 @@ int runVisionComponent(int argc, char** argv) {
   opt.domain = domain;
   opt.ns = ns;
   opt.track = track;
+  opt.tracking.prior_max_scale = prior_max_scale;
   detector::Detector det;
   try {
     if (!detector_config.empty()) det = detector::Detector(detector::loadDetectorOptions(detector_config));

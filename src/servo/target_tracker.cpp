@@ -42,6 +42,7 @@ void TargetTrackerOptions::check() const {
   need(confirm_max_frames >= confirm_detections, "confirm_max_frames", "must be >= confirm_detections");
   need(prior_frames >= 0, "prior_frames", "must be >= 0");
   need(std::isfinite(prior_roi_margin) && prior_roi_margin >= 0, "prior_roi_margin", "must be >= 0");
+  need(std::isfinite(prior_max_scale) && prior_max_scale >= 0, "prior_max_scale", "must be >= 0");
   need(std::isfinite(prior_scale_margin) && prior_scale_margin >= 1, "prior_scale_margin", "must be >= 1");
   need(redetect_every_frames >= 0, "redetect_every_frames", "must be >= 0");
   tracker.check();
@@ -278,14 +279,13 @@ struct TargetTracker::Impl {
           if (!r) continue;
           detector::ObjectPrior p;
           p.object = id;
+          p.roi_margin = opt.prior_roi_margin;
+          p.scale_margin = opt.prior_scale_margin;
+          p.max_scale = opt.prior_max_scale;
           if (r->cMo) {
             p.cMo = eyes[e].lMe.inverse() * *r->cMo;
-            p.roi_margin = opt.prior_roi_margin;
-            p.scale_margin = opt.prior_scale_margin;
           } else if (r->H && e == 0) {
             p.H = *r->H;
-            p.roi_margin = opt.prior_roi_margin;
-            p.scale_margin = opt.prior_scale_margin;
           } else {
             p.roi = cv::Rect(0, 0, eyes[e].camera.width, eyes[e].camera.height);
           }

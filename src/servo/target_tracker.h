@@ -66,6 +66,12 @@ struct TargetTrackerOptions {
   int prior_frames = 4;
   double prior_roi_margin = 0.5;    ///< detector::ObjectPrior::roi_margin of a re-detection
   double prior_scale_margin = 2.0;  ///< detector::ObjectPrior::scale_margin of a re-detection
+  /// detector::ObjectPrior::max_scale of a re-detection (scene px per reference px): a predicted
+  /// pattern larger than that is extracted downsampled, so a large frame costs about what a small
+  /// one does (0.4: results.md "Detection with a prior region at 1280x720"). 0 (default): never
+  /// downsampled, since a reference no sharper than the scene keeps too few features when
+  /// downsampled (same page).
+  double prior_max_scale = 0;
   /// > 0: a tracked target is also detected in its predicted region every N frames and, when the
   /// detection agrees, the tracker restarts from it (bounds drift). A confirmed track that a
   /// detection disagrees with goes on, the next frames are detected too, and confirm_detections

@@ -219,10 +219,48 @@ TEST(PoseReplayApp, TheDetectorConfigFileIsUsedAndABadOneIsAOneLineError) {
   EXPECT_EQ(r.err.rfind("pose_replay: " + cfg.string() + ": match.min_inlier", 0), 0u) << r.err;
 }
 
+// --prior-max-scale: the tracker's re-detections after the target left the view and came back
+// from behind the occluder search their predicted region downsampled, as precise on the frames in
+// full view; options in any order; a bad value is a one-line error.
+TEST(PoseReplayApp, PriorMaxScaleKeepsThePosesAndABadValueIsAOneLineError) {
+  std::vector<refgrasp::testing::SequenceFrame> seq;
+  const auto all = refgrasp::testing::renderOcclusionSequence();
+  for (size_t k = 0; k < all.size(); k += 2) seq.push_back(all[k]);
+  const fs::path rec = scratch("recording_prior");
+  {
+    files::RecordingOptions o;
+    o.fsync = false;
+    auto w = files::RecordingWriter::createMono(rec.string(), refgrasp::testing::sceneCamera(), o);
+    for (const auto& f : seq) ASSERT_TRUE(w->write(f.frame).ok);
+  }
+  const fs::path out = scratch("out_prior");
+  const AppRun r = runApp("pose_replay", "--prior-max-scale 0.4 --output " + out.string() + " --input " +
+                                             rec.string() + kObject);
+  ASSERT_EQ(r.status, 0) << r.err;
+  const std::vector<json> lines = jsonLines(readFile(out / "poses.jsonl"));
+  ASSERT_EQ(lines.size(), seq.size());
+  int full_view = 0;
+  for (size_t k = 0; k < seq.size(); ++k) {
+    if (seq[k].visible < 0.95) continue;
+    ++full_view;
+    ASSERT_NE(lines[k]["mode"], "lost") << k;
+    EXPECT_LT(lines[k]["error"]["translation_m"].get<double>(), 0.009) << k;
+    EXPECT_LT(lines[k]["error"]["rotation_deg"].get<double>(), 1.0) << k;
+  }
+  EXPECT_GE(full_view, 5);
+  for (const char* bad : {"-1", "nan", "x"}) {
+    const AppRun b = runApp("pose_replay", kObject + " --input " + rec.string() + " --output " + out.string() +
+                                               " --prior-max-scale " + bad);
+    EXPECT_EQ(b.status, 2) << bad;
+    EXPECT_EQ(lineCount(b.err), 1u) << b.err;
+    EXPECT_NE(b.err.find("--prior-max-scale"), std::string::npos) << b.err;
+  }
+}
+
 TEST(PoseReplayApp, HelpNamesTheOutputsAndExitCodes) {
   const AppRun r = runApp("pose_replay", "--help");
   EXPECT_EQ(r.status, 0);
   for (const char* s : {"poses.jsonl", "trajectory.tum", "overlay.mp4", "summary.json", "plot.png",
-                        "--no-track", "--stereo", "--detector-config", "Exit status"})
+                        "--no-track", "--stereo", "--detector-config", "--prior-max-scale", "Exit status"})
     EXPECT_NE(r.out.find(s), std::string::npos) << s;
 }

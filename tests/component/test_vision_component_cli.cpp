@@ -102,6 +102,17 @@ TEST_F(ComponentCli, HelpAndBadOptions) {
   std::tie(rc, err) = run(args({"--object", flat.string(), "--stereo", kSource + "/config/cameras/bb2_rig.yaml"}));
   EXPECT_EQ(rc, 2);
   EXPECT_NE(err.find(flat.string() + ": reference_pose: required with --stereo"), std::string::npos) << err;
+  // The tracker's re-detection option: only with --track, a finite number >= 0.
+  std::tie(rc, err) = run(args({"--prior-max-scale", "0.4", "--object", kObject}));
+  EXPECT_EQ(rc, 2);
+  EXPECT_NE(err.find("vision_component: --prior-max-scale: needs --track"), std::string::npos) << err;
+  EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+  for (const char* bad : {"-1", "nan", "x"}) {
+    std::tie(rc, err) = run(args({"--object", kObject, "--track", "--prior-max-scale", bad}));
+    EXPECT_EQ(rc, 2) << bad;
+    EXPECT_NE(err.find("--prior-max-scale"), std::string::npos) << bad << ": " << err;
+    EXPECT_EQ(std::count(err.begin(), err.end(), '\n'), 1) << err;
+  }
 }
 
 TEST_F(ComponentCli, DdsFailureIsExit3) {

@@ -330,6 +330,43 @@ TEST(TargetTracker, ReDetectsThroughThePriorThenTheWholeFrame) {
   EXPECT_EQ(f.objects[0].mode, TrackMode::kDetect);  // the confirming detection
 }
 
+// prior_max_scale: the re-detection in the predicted region after a loss extracts the pattern
+// downsampled where it is predicted larger than that, and finds it as precisely; by default
+// (0) the region is extracted at full resolution.
+TEST(TargetTracker, PriorMaxScaleDownsamplesTheReDetectionInThePredictedRegion) {
+  // The box close up (0.32 m, larger in the image than 0.2 image px per reference px), drifting
+  // slowly sideways.
+  rt::TrackingSequenceSpec spec;
+  spec.texture = kTexture;
+  spec.width_m = kWidth;
+  spec.frames = 12;
+  spec.path = [](double t) { return rt::sidewaysView(-0.01 + 0.02 * t, 0.0, 0.32); };
+  const rt::TrackingSequence seq = rt::renderTrackingSequence(spec);
+  for (const double max_scale : {0.0, 0.2}) {
+    servo::TargetTrackerOptions o;
+    o.prior_max_scale = max_scale;
+    servo::TargetTracker pipeline(targetDetector(), o);
+    for (size_t k = 0; k < 10; ++k) ASSERT_TRUE(pipeline.process(seq.mono[k], seq.camera).ok);
+    robot::MonoFrame blank = seq.mono[10];
+    blank.image = cv::Mat(480, 640, CV_8UC1, cv::Scalar(128));
+    ASSERT_EQ(pipeline.process(blank, seq.camera).objects[0].mode, TrackMode::kLost);
+    const servo::TargetFrame f = pipeline.process(seq.mono[11], seq.camera);
+    const servo::TargetState& t = f.objects[0];
+    EXPECT_EQ(t.mode, TrackMode::kDetect) << max_scale;
+    EXPECT_EQ(t.searched, servo::SearchScope::kPrior) << max_scale;
+    ASSERT_TRUE(t.detector_stats && t.cMo) << max_scale;
+    if (max_scale > 0)
+      EXPECT_GT(t.detector_stats->downsample, 1.5);
+    else
+      EXPECT_EQ(t.detector_stats->downsample, 1);
+    std::printf("prior_max_scale %.1f: downsample %.2f, translation error %.5f of the distance, rotation %.3f deg\n",
+                max_scale, t.detector_stats->downsample, translationError(*t.cMo, seq.truth[11]) / seq.truth[11].t.norm(),
+                rotationError(*t.cMo, seq.truth[11]) * kDeg);
+    EXPECT_LT(translationError(*t.cMo, seq.truth[11]), 0.01 * seq.truth[11].t.norm()) << max_scale;
+    EXPECT_LT(rotationError(*t.cMo, seq.truth[11]) * kDeg, 1.0) << max_scale;
+  }
+}
+
 // A single detection that the next frames do not repeat is never confirmed (with or without
 // tracking), nor are detections that jump between two places; a target that stays is.
 TEST(TargetTracker, ConfirmationRejectsASingleWrongDetection) {
@@ -549,6 +586,9 @@ TEST(TargetTracker, BadOptionsThrowAtStartUpAndBadFramesAreOneLineErrors) {
   o = {};
   o.prior_scale_margin = 0.5;
   throwsWith([&] { servo::TargetTracker p(targetDetector(), o); }, "TargetTrackerOptions.prior_scale_margin");
+  o = {};
+  o.prior_max_scale = -1;
+  throwsWith([&] { servo::TargetTracker p(targetDetector(), o); }, "TargetTrackerOptions.prior_max_scale");
   o = {};
   o.tracker.min_visible_fraction = 2;
   throwsWith([&] { servo::TargetTracker p(targetDetector(), o); }, "TrackerOptions.min_visible_fraction");
