@@ -11,20 +11,23 @@ namespace refgrasp::detector {
 namespace {
 
 // How much coarser than the features' localisation (their fit's RMS residual) the template of a
-// dense alignment may be and still question the features' fit. A template whose pixel is more
-// than ten times coarser belongs to a large pattern under the template size cap in a sharp scene,
-// where hundreds of features place it to a tenth of a template pixel and the alignment does no
-// better than half of one; under blur the features' residuals grow and a coarse template, which
-// loses nothing to blur, still questions them (results.md "Near-identity pairs at full
-// resolution": the ratios measured there, 25-60 against 2-6).
+// dense alignment may be and still question the features' fit by a shift within its own pixel.
+// A template whose pixel is more than ten times coarser belongs to a large pattern under the
+// template size cap in a sharp scene, where hundreds of features place it to a tenth of a
+// template pixel and the alignment does no better than half of one; under blur the features'
+// residuals grow and a coarse template, which loses nothing to blur, still questions them
+// (results.md "Near-identity pairs at full resolution": the ratios measured there, 22-60 against
+// 2-6).
 constexpr double kMaxDensePixelOverFeatureRms = 10;
 
-// A dense refinement that converged well but was refused for moving a corner too far, and is fine
-// enough to say that the features' fit (rms_px: its RMS residual) is off by that much.
+// A dense refinement that converged well but was refused for moving a corner too far, and says
+// that the features' fit (rms_px: its RMS residual) is off by that much: by more than a pixel of
+// its template, or with a template not much coarser than the features' residuals.
 bool refusedForDistance(const RegisteredObject& obj, const DenseRefineResult& d, const DenseRefineOptions& opt,
                         double rms_px) {
-  return !d.ok && d.corner_shift_px > opt.max_corner_shift_px && d.correlation >= opt.min_correlation &&
-         densePixelInScene(obj, d) <= kMaxDensePixelOverFeatureRms * rms_px;
+  if (d.ok || d.corner_shift_px <= opt.max_corner_shift_px || d.correlation < opt.min_correlation) return false;
+  const double pixel = densePixelInScene(obj, d);
+  return d.corner_shift_px > pixel || pixel <= kMaxDensePixelOverFeatureRms * rms_px;
 }
 
 // The dense refinement from H with room to move: half the pattern's diagonal (ok = false when
