@@ -52,23 +52,33 @@ std::string sceneCameraFile() {
 
 size_t lineCount(const std::string& s) { return static_cast<size_t>(std::count(s.begin(), s.end(), '\n')); }
 
-}  // namespace
-
-TEST(PoseReplayApp, ARecordedSequenceReplaysTwiceWithIdenticalPoses) {
-  // Every other frame of the sequence (the full one is replayed in-process in test_replay.cpp):
-  // still in view, out of view, behind the occluder and out again.
+// Every other frame of the rendered sequence: still in view, out of view, behind the occluder
+// and out again.
+std::vector<refgrasp::testing::SequenceFrame> everyOtherFrame() {
   std::vector<refgrasp::testing::SequenceFrame> seq;
   const auto all = refgrasp::testing::renderOcclusionSequence();
   for (size_t k = 0; k < all.size(); k += 2) seq.push_back(all[k]);
-  const fs::path rec = scratch("recording");
-  {
-    files::RecordingOptions o;
-    o.fsync = false;
-    auto w = files::RecordingWriter::createMono(rec.string(), refgrasp::testing::sceneCamera(), o);
-    for (const auto& f : seq) ASSERT_TRUE(w->write(f.frame).ok);
-    EXPECT_LE(seq[5].visible, 0.05);   // out of view
-    EXPECT_LE(seq[11].visible, 0.05);  // behind the occluder
-  }
+  return seq;
+}
+
+// seq as a mono recording in scratch(name).
+fs::path writeRecording(const std::string& name, const std::vector<refgrasp::testing::SequenceFrame>& seq) {
+  const fs::path rec = scratch(name);
+  files::RecordingOptions o;
+  o.fsync = false;
+  auto w = files::RecordingWriter::createMono(rec.string(), refgrasp::testing::sceneCamera(), o);
+  for (const auto& f : seq) EXPECT_TRUE(w->write(f.frame).ok);
+  return rec;
+}
+
+}  // namespace
+
+TEST(PoseReplayApp, ARecordedSequenceReplaysTwiceWithIdenticalPoses) {
+  // Every other frame of the sequence (the full one is replayed in-process in test_replay.cpp).
+  const std::vector<refgrasp::testing::SequenceFrame> seq = everyOtherFrame();
+  const fs::path rec = writeRecording("recording", seq);
+  EXPECT_LE(seq[5].visible, 0.05);   // out of view
+  EXPECT_LE(seq[11].visible, 0.05);  // behind the occluder
   const fs::path a = scratch("out_a"), a2 = scratch("out_a2"), b = scratch("out_b");
   const AppRun ra = runApp("pose_replay", kObject + " --input " + rec.string() + " --output " + a.string());
   ASSERT_EQ(ra.status, 0) << ra.err;
@@ -223,16 +233,8 @@ TEST(PoseReplayApp, TheDetectorConfigFileIsUsedAndABadOneIsAOneLineError) {
 // from behind the occluder search their predicted region downsampled, as precise on the frames in
 // full view; options in any order; a bad value is a one-line error.
 TEST(PoseReplayApp, PriorMaxScaleKeepsThePosesAndABadValueIsAOneLineError) {
-  std::vector<refgrasp::testing::SequenceFrame> seq;
-  const auto all = refgrasp::testing::renderOcclusionSequence();
-  for (size_t k = 0; k < all.size(); k += 2) seq.push_back(all[k]);
-  const fs::path rec = scratch("recording_prior");
-  {
-    files::RecordingOptions o;
-    o.fsync = false;
-    auto w = files::RecordingWriter::createMono(rec.string(), refgrasp::testing::sceneCamera(), o);
-    for (const auto& f : seq) ASSERT_TRUE(w->write(f.frame).ok);
-  }
+  const std::vector<refgrasp::testing::SequenceFrame> seq = everyOtherFrame();
+  const fs::path rec = writeRecording("recording_prior", seq);
   const fs::path out = scratch("out_prior");
   const AppRun r = runApp("pose_replay", "--prior-max-scale 0.4 --output " + out.string() + " --input " +
                                              rec.string() + kObject);
