@@ -161,6 +161,11 @@ int main(int argc, char** argv) {
   std::printf("the object pose each view implies, where both are found (box at %s):\n", stats(dist, "m").c_str());
   std::printf("  translation gap %s; %s of the distance\n  rotation gap %s\n", stats(mm, "mm").c_str(),
               stats(pct, "%").c_str(), stats(deg, "deg").c_str());
+  std::vector<double> own_deg, views_deg;
+  for (const eval::BoxViewAgreement& a : r.agreement) (a.by_views ? views_deg : own_deg).push_back(a.rotation_deg);
+  std::printf("  rotation gap where both views were found by their own features: %s (%zu frames)\n"
+              "  where a view needed its view-synthesised features: %s (%zu frames)\n",
+              stats(own_deg, "deg").c_str(), own_deg.size(), stats(views_deg, "deg").c_str(), views_deg.size());
   std::string far;
   int n_far = 0;
   for (const eval::BoxViewAgreement& a : r.agreement)

@@ -46,6 +46,7 @@ Json detectorJson(const servo::TargetObservation& o) {
             {"global_matches", st.global_matches},
             {"hypotheses", st.hypotheses_evaluated},
             {"candidates", st.candidates},
+            {"views", st.views_matched},
             {"rejected", {{"too_few_local_matches", r.too_few_local_matches},
                           {"too_few_inliers", r.too_few_inliers},
                           {"not_significant", r.not_significant},

@@ -4,6 +4,8 @@
 #include <cmath>
 #include <opencv2/imgproc.hpp>
 
+#include "detector/plane_views.h"
+
 namespace refgrasp::detector {
 
 namespace {
@@ -23,12 +25,6 @@ constexpr double kSpanAngle = 75 * kPi / 180;
 constexpr double kScales[] = {1.0, 0.5, 0.25};
 // Grey margin round a view (px), so that SIFT's border exclusion does not eat the label's rows.
 constexpr int kMarginPx = 12;
-// A synthesised feature repeats a kept one when it lies within this fraction of its size
-// (label px), its size is within kSameSizeRatio and its descriptor within kSameDescriptor (L2;
-// OpenCV SIFT descriptors have norm ~512, unrelated ones are 350-450 apart).
-constexpr double kSamePlaceFraction = 0.5;
-constexpr double kSameSizeRatio = 1.5;
-constexpr double kSameDescriptor = 250;
 
 // One view: the label wrapped on the cylinder turned by `turn`, seen orthographically at `scale`,
 // and its features mapped back to label px.
@@ -79,14 +75,8 @@ void addView(const CylinderLabel& L, const cv::Mat& gray, double turn, double sc
 }
 
 bool repeats(const Features& kept, const cv::KeyPoint& k, const cv::Mat& d) {
-  for (int j = 0; j < kept.size(); ++j) {
-    const cv::KeyPoint& o = kept.keypoints[static_cast<size_t>(j)];
-    const double dx = o.pt.x - k.pt.x, dy = o.pt.y - k.pt.y;
-    const double r = kSamePlaceFraction * std::max(o.size, k.size);
-    if (dx * dx + dy * dy > r * r) continue;
-    if (std::max(o.size, k.size) > kSameSizeRatio * std::min(o.size, k.size)) continue;
-    if (cv::norm(kept.descriptors.row(j), d, cv::NORM_L2) < kSameDescriptor) return true;
-  }
+  for (int j = 0; j < kept.size(); ++j)
+    if (repeatsFeature(kept.keypoints[static_cast<size_t>(j)], kept.descriptors.row(j), k, d)) return true;
   return false;
 }
 

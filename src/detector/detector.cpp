@@ -162,6 +162,14 @@ struct ObjectTally {
   }
 };
 
+void addRejects(const MatchRejects& a, MatchRejects* sum) {
+  sum->too_few_local_matches += a.too_few_local_matches;
+  sum->too_few_inliers += a.too_few_inliers;
+  sum->not_significant += a.not_significant;
+  sum->implausible_homography += a.implausible_homography;
+  sum->narrow_inlier_spread += a.narrow_inlier_spread;
+}
+
 // The spare candidate (verify.spare_candidate): the matcher's search ends once it has
 // max_instances candidates, and when every one of them failed the checks (on a facade, a
 // consensus one window off that the pose check refuses) it is asked for one more, checked the
@@ -222,6 +230,27 @@ void detectObject(const RegisteredObject& obj, int id, const DetectorOptions& op
       static_cast<int>(m.instances.size()) >= opt.match.max_instances) {
     spare_ms = checkSpareCandidate(ctx, m, &st, &tally, res);
     res->time_ms.match += spare_ms;
+  }
+  if (tally.found == 0 && extraction && obj.with_views) {
+    // Nothing from the reference's own features: the object again with its view-synthesised
+    // features (RegisteredObject::with_views), checked the same way.
+    const auto tv = Clock::now();
+    const MatchResult mv = matchRegistered(*obj.with_views, scene, extraction->grid, opt.match);
+    double views_ms = msSince(tv);
+    st.views_matched = true;
+    st.global_matches = std::max(st.global_matches, mv.global_matches);
+    st.hypotheses_evaluated += mv.hypotheses_evaluated;
+    st.candidates += static_cast<int>(mv.instances.size());
+    addRejects(mv.rejected, &st.rejected);
+    m.global_matches = st.global_matches;
+    m.rejected = st.rejected;
+    const CandidateContext vctx{*obj.with_views, id, ctx.opt, scene, &extraction->grid, camera};
+    for (const MatchCandidate& matched : mv.instances) tally.add(verifyCandidate(vctx, matched), &st, res);
+    if (tally.found == 0 && opt.verify.enabled && opt.verify.spare_candidate && !mv.instances.empty() &&
+        static_cast<int>(mv.instances.size()) >= opt.match.max_instances)
+      views_ms += checkSpareCandidate(vctx, mv, &st, &tally, res);
+    res->time_ms.match += views_ms;
+    spare_ms += views_ms;
   }
   if (tally.found == 0) {
     res->detections.emplace_back();

@@ -164,6 +164,9 @@ struct ObjectStats {
   int global_matches = 0;        ///< of them, passing the global ratio test
   int hypotheses_evaluated = 0;
   int candidates = 0;            ///< homographies the matcher accepted (before pose and sanity)
+  /// The object's own features found nothing and its view-synthesised features were matched too
+  /// (match.plane_views); the counts above then add both passes (global_matches: the larger).
+  bool views_matched = false;
   MatchRejects rejected;         ///< hypotheses / fits that ended at each matcher stage
   MissReason miss = MissReason::kNone;
   SanityStatus sanity = SanityStatus::kOk;  ///< with kSanity: the best candidate's status

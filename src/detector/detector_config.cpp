@@ -38,6 +38,7 @@ void visitFields(O& o, Visit&& v) {
   v("match.min_inlier_spread", o.match.min_inlier_spread);
   v("match.affine_below_px", o.match.affine_below_px);
   v("match.cylinder_views", o.match.cylinder_views);
+  v("match.plane_views", o.match.plane_views);
   v("match.max_log10_nfa", o.match.max_log10_nfa);
   v("match.seed", o.match.seed);
   v("pose", o.pose);

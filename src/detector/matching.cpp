@@ -12,6 +12,7 @@
 #include "core/error.h"
 #include "core/geometry.h"
 #include "detector/homography.h"
+#include "detector/plane_views.h"
 
 namespace refgrasp::detector {
 namespace {
@@ -35,6 +36,7 @@ constexpr double kPerspectiveFalseAlarm = 1e-3;  // planeAffineUnlessPerspective
 constexpr double kAmbiguousSeedFraction = 0.7; // twin seeds need d1, d2 < this x max_descriptor_distance
 constexpr double kNfaMinEpsPx = 0.5;           // a-contrario: no consensus is tighter than SIFT's localisation
 constexpr int kNfaSample = 4;                  // a-contrario: the homography's minimal sample
+constexpr double kSamePlaceFraction = 0.5;     // two reference features within this x the larger size are one place
 
 Vec2 pt(const cv::KeyPoint& k) { return Vec2(k.pt.x, k.pt.y); }
 double deg2rad(double d) { return d * kPi / 180.0; }
@@ -384,10 +386,12 @@ bool evaluateHypothesis(const Context& cx, int r, int s, Candidate* out) {
   // shows only the coarse features, which can lie beyond the nearest few hundred.
   auto detectable = [&](int i) { return rk[i].size * sim.dscale >= cx.min_scene_size; };
   std::vector<int> near;
-  cx.ref.neighbours.nearest(r, kQuickNeighbours, detectable, &near);
+  // The walks cover a number of places of the pattern, whatever its features per place.
+  const double per_place = std::max(1.0, cx.ref.features_per_place);
+  cx.ref.neighbours.nearest(r, static_cast<int>(std::lround(kQuickNeighbours * per_place)), detectable, &near);
   localSearch(cx, sim, &near, simRadius, &m);
   if (static_cast<int>(m.size()) < kQuickMinMatches) return tooFewLocal();
-  cx.ref.neighbours.nearest(r, kPass1Neighbours, detectable, &near);
+  cx.ref.neighbours.nearest(r, static_cast<int>(std::lround(kPass1Neighbours * per_place)), detectable, &near);
   localSearch(cx, sim, &near, simRadius, &m);
   if (static_cast<int>(m.size()) < kPass1MinMatches) return tooFewLocal();
 
@@ -446,10 +450,18 @@ MatchResult matchPaper(const Context& cx, const std::vector<NearestTwo>& nn) {
   // after the unambiguous ones), and the local search decides.
   const double amb1 = kAmbiguousSeedFraction * cx.opt.max_descriptor_distance;
   const double amb1_2 = amb1 * amb1;
+  // The ratio test compares places: a view-synthesised copy (plane_views.h) of the first's place
+  // in the reference, or the place of which the first is such a copy, is no rival.
+  auto samePlace = [&](int a, int b) {
+    if (rk[a].class_id != kSynthesisedFeature && rk[b].class_id != kSynthesisedFeature) return false;
+    const double dx = rk[a].pt.x - rk[b].pt.x, dy = rk[a].pt.y - rk[b].pt.y;
+    const double r = kSamePlaceFraction * std::max(rk[a].size, rk[b].size);
+    return dx * dx + dy * dy <= r * r;
+  };
   for (int j = 0; j < static_cast<int>(nn.size()); ++j) {
     if (nn[j].best < 0 || nn[j].d2 == INT_MAX) continue;
     const double ratio2 = static_cast<double>(nn[j].d1) / nn[j].d2;
-    if (ratio2 < gr2) {
+    if (ratio2 < gr2 || (nn[j].d1 <= cx.max_dd2 && samePlace(nn[j].best, nn[j].second))) {
       addSeed(nn[j].best, j, ratio2, false);
       ++res.global_matches;
     } else if (nn[j].d1 < amb1_2 && nn[j].d2 < amb1_2) {

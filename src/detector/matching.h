@@ -62,6 +62,13 @@ struct MatchOptions {
   /// Cylinder objects (cylinder model): the label's features also as the label looks turned away
   /// and from further off, view-synthesised (detector/cylinder_views.h), in both of its indices.
   bool cylinder_views = true;
+  /// Planar objects: the reference's features also as the pattern looks tilted (45 and 60 deg
+  /// about axes in its plane, and fronto-parallel) and from further off (80 and 40 px large),
+  /// view-synthesised (detector/plane_views.h), in a second index matched when the object's own
+  /// features find nothing in a frame. On: far and oblique faces share few descriptors with a
+  /// reference photographed at another angle; second: where the own features find the object,
+  /// their fit is the more precise (docs/detector.md).
+  bool plane_views = true;
   uint64_t seed = 0;
   /// Throws std::invalid_argument on nonsense.
   void check() const;

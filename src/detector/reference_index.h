@@ -27,6 +27,10 @@ struct ReferenceIndex {
   /// reference's px), from the reference pose; identity for 2D-only objects (the reference then
   /// stands for the plane).
   Eigen::Matrix3d rectify_px = Eigen::Matrix3d::Identity();
+  /// Features per place of the pattern: kept features over those of the reference image itself
+  /// (1 without view-synthesised features), so that a walk over the nearest N places visits
+  /// N x this features.
+  double features_per_place = 1;
 };
 
 /// Keeps features inside the polygon (>= 3 vertices; empty = whole image), then at most

@@ -9,6 +9,7 @@
 #include "core/geometry.h"
 #include "detector/cylinder_detection.h"
 #include "detector/homography.h"
+#include "detector/plane_views.h"
 
 namespace refgrasp::detector {
 
@@ -30,6 +31,23 @@ Eigen::Matrix3d rectification(const PlanarTarget& target, double diagonal_px) {
   return R.allFinite() ? R : Eigen::Matrix3d::Identity();
 }
 
+// The linear map from reference px to the pattern plane seen fronto-parallel, at the pattern
+// region's centre (the rectification's Jacobian there, any scale); identity without a reference
+// pose.
+Eigen::Matrix2d frontalMap(const ObjectModel& object) {
+  if (!object.target) return Eigen::Matrix2d::Identity();
+  const Eigen::Matrix3d R = rectification(*object.target, 1.0);
+  Eigen::Vector2d c = Eigen::Vector2d(object.reference.cols - 1, object.reference.rows - 1) / 2;
+  if (object.pattern_polygon_px.size() >= 3) c = polygonCentroid(object.pattern_polygon_px);
+  const Eigen::Vector3d y = R * c.homogeneous();
+  if (!(std::abs(y.z()) > 1e-12)) return Eigen::Matrix2d::Identity();
+  const double u = y.x() / y.z(), v = y.y() / y.z();
+  Eigen::Matrix2d J;
+  J << R(0, 0) - u * R(2, 0), R(0, 1) - u * R(2, 1), R(1, 0) - v * R(2, 0), R(1, 1) - v * R(2, 1);
+  J /= y.z();
+  return J.allFinite() ? J : Eigen::Matrix2d::Identity();
+}
+
 }  // namespace
 
 RegisteredObject registerObject(const ObjectModel& object, const DetectorOptions& opt) {
@@ -37,8 +55,16 @@ RegisteredObject registerObject(const ObjectModel& object, const DetectorOptions
   obj.model = object;
   Features f = extractSift(object.reference, opt.sift);
   std::vector<Eigen::Vector2d> polygon = object.pattern_polygon_px;
+  // A cylinder on its cylinder model has its own views (cylinder_views.h); under the paper pose it
+  // is its flat label on the planar path, as a planar object of the same reference.
+  const bool cylinder_model = object.isCylinder() && opt.pose == PoseMethod::kRefined;
+  // The pattern as it looks tilted and from further off (plane_views.h), for the second index.
+  Features views;
+  if (opt.match.plane_views && !cylinder_model)
+    views = synthesisedPlaneFeatures(object.reference, f, polygon, frontalMap(object), opt.sift);
   if (object.camera) {
     undistortKeypoints(&f.keypoints, *object.camera);
+    undistortKeypoints(&views.keypoints, *object.camera);
     for (auto& p : polygon) p = object.camera->undistortPixel(p);
   }
   for (int i = 0; i < 4; ++i)
@@ -50,6 +76,12 @@ RegisteredObject registerObject(const ObjectModel& object, const DetectorOptions
     MatchOptions uncapped = opt.match;
     uncapped.max_reference_features = std::numeric_limits<int>::max();
     all = buildReferenceIndex(f, polygon, uncapped);
+  }
+  Features own_and_views;
+  if (views.size() > 0) {
+    own_and_views = f;
+    own_and_views.keypoints.insert(own_and_views.keypoints.end(), views.keypoints.begin(), views.keypoints.end());
+    own_and_views.descriptors.push_back(views.descriptors);
   }
   obj.index = buildReferenceIndex(std::move(f), polygon, opt.match);
   if (object.target) obj.index.rectify_px = rectification(*object.target, obj.index.diagonal_px);
@@ -66,7 +98,19 @@ RegisteredObject registerObject(const ObjectModel& object, const DetectorOptions
     miny = std::min(miny, p.y()), maxy = std::max(maxy, p.y());
   }
   obj.region_is_rect = std::abs(signedArea(obj.polygon_und_px)) >= 0.98 * (maxx - minx) * (maxy - miny);
-  if (object.isCylinder() && opt.pose == PoseMethod::kRefined) registerCylinder(&obj, opt);
+  if (cylinder_model) registerCylinder(&obj, opt);
+  if (own_and_views.size() > 0) {
+    // The same object matched on its own features and the views together; the cap grows with
+    // the views, so that they add to the reference's own features, not replace them.
+    auto with = std::make_shared<RegisteredObject>(obj);
+    MatchOptions match = opt.match;
+    match.max_reference_features += views.size();
+    with->index = buildReferenceIndex(std::move(own_and_views), polygon, match);
+    with->index.rectify_px = obj.index.rectify_px;
+    const int n = with->index.features.size();
+    with->index.features_per_place = std::max(1.0, static_cast<double>(n) / std::max(1, n - views.size()));
+    obj.with_views = std::move(with);
+  }
   return obj;
 }
 

@@ -7,6 +7,7 @@
 // (scene side). H maps undistorted reference px -> undistorted scene px (x_s ~ H x_r).
 #include <Eigen/Core>
 #include <array>
+#include <memory>
 #include <opencv2/core.hpp>
 #include <optional>
 #include <vector>
@@ -47,6 +48,11 @@ struct RegisteredObject {
   /// columns within W/4 of its seam from seam_index, the others from index), for the guided
   /// expansion over the visible half.
   Features label_features;
+  /// A planar object with match.plane_views: the same object whose index also holds the
+  /// reference's view-synthesised features (detector/plane_views.h). Matched only when the
+  /// object's own features find nothing in a frame: the views find far and oblique faces, and
+  /// where the own features suffice their fit is the more precise (docs/detector.md, step 1).
+  std::shared_ptr<const RegisteredObject> with_views;
 };
 
 /// Reference features, index, pyramid and periods of `object` (a non-empty 8-bit gray reference).

@@ -50,6 +50,8 @@ std::vector<AblationVariant> verificationAblation() {
        }},
       {"2D: dense alignment at any coarsening", "dense.max_2d_coarsening: 1e9",
        [](O* o) { o->dense.max_2d_coarsening = 1e9; }},
+      {"no view-synthesised reference features", "match.plane_views: false",
+       [](O* o) { o->match.plane_views = false; }},
   };
 }
 

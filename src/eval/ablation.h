@@ -23,7 +23,8 @@ struct AblationVariant {
   std::function<void(detector::DetectorOptions*)> apply;
 };
 
-/// "all checks" first, then each rule of the verification stage off in turn (on top of `base`).
+/// "all checks" first, then each rule of the verification stage off in turn, then the matcher's
+/// view-synthesised reference features off (MatchOptions::plane_views; on top of `base`).
 std::vector<AblationVariant> verificationAblation();
 
 struct AblationData {

@@ -163,6 +163,7 @@ BoxVideoResult runBoxVideo(const BoxVideoOptions& opt) {
       a.distance_m = (cMo[0]->t.norm() + cMo[1]->t.norm()) / 2;
       a.translation_m = (cMo[0]->t - cMo[1]->t).norm();
       a.rotation_deg = rotationGapDeg(*cMo[0], *cMo[1]);
+      a.by_views = d.stats.at(0).views_matched || d.stats.at(1).views_matched;
       out.agreement.push_back(a);
     }
   }

@@ -76,6 +76,9 @@ struct BoxViewAgreement {
   double distance_m = 0;      ///< the box's distance (mean of the two)
   double translation_m = 0;   ///< |t_a - t_b|
   double rotation_deg = 0;    ///< angle of R_a^T R_b
+  /// A view was found only with its view-synthesised features (ObjectStats::views_matched):
+  /// its own features found nothing in this frame.
+  bool by_views = false;
 };
 
 struct BoxVideoResult {

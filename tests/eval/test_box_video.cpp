@@ -71,18 +71,28 @@ TEST(BoxVideo, TheTwoViewBoxIsFoundAndTrackedThroughTheRealClipAndItsViewsAgree)
   ASSERT_EQ(r.view_names.size(), 2u);
   EXPECT_EQ(r.view_frames, 91);
   EXPECT_GE(r.view_found[0], 85);  // front
-  EXPECT_GE(r.view_found[1], 65);  // top
-  ASSERT_GE(r.agreement.size(), 63u);
-  std::vector<double> deg, fraction;
+  EXPECT_GE(r.view_found[1], 75);  // top
+
+  // Where both views' own features found them; the frames a view needed its view-synthesised
+  // features for (the top face seen edge-on late in the clip) apart: those agree less.
+  std::vector<double> deg, fraction, views_deg;
   int within_10_deg = 0;
   for (const BoxViewAgreement& a : r.agreement) {
+    within_10_deg += a.rotation_deg <= 10;
+    if (a.by_views) {
+      views_deg.push_back(a.rotation_deg);
+      continue;
+    }
     deg.push_back(a.rotation_deg);
     fraction.push_back(a.translation_m / a.distance_m);
-    within_10_deg += a.rotation_deg <= 10;
   }
+  ASSERT_GE(deg.size(), 63u);
   EXPECT_LE(median(deg), 3.5);
   EXPECT_LE(median(fraction), 0.010);
   EXPECT_GE(within_10_deg, static_cast<int>(0.95 * r.agreement.size()));
+  EXPECT_GE(views_deg.size(), 10u);
+  EXPECT_LE(median(views_deg), 8.0);
+  for (double d : views_deg) EXPECT_LE(d, 11.0);
 }
 
 namespace {

@@ -3,7 +3,7 @@
 // defined by a *photograph* of it (taken at 30 deg under other light, its region traced as a
 // polygon: what make_reference is given); the sequence comes through another camera with its own
 // look (gain, gamma, gradient, vignetting, noise per frame, JPEG) while the camera backs away to
-// 3.4 m at up to 60 deg and comes back. Ground truth from the renderer.
+// 3.8 m at up to 60 deg and comes back. Ground truth from the renderer.
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -44,7 +44,7 @@ TEST(RealisticTracking, APoseOnNearlyEveryFrameWhereDetectionFindsAboutHalf) {
   spec.path = [](double t) {
     const double u = 0.5 * (1 - std::cos(2 * M_PI * t));  // 0 -> 1 -> 0
     rt::ViewPoint v;
-    v.distance_m = 1.0 + 2.4 * u;
+    v.distance_m = 1.0 + 2.8 * u;
     v.tilt_rad = 60 * M_PI / 180 * std::sin(M_PI * t);
     v.tilt_dir_rad = 0.6;
     v.roll_rad = 0.2 * std::sin(3 * M_PI * t);
