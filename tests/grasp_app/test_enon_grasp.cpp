@@ -118,9 +118,10 @@ TEST(EnonGraspApp, TheLogSaysWhatTheDetectorSawOnEveryFrameItRan) {
     if (l["source"] == "detect") EXPECT_FALSE(d.is_null()) << "a detection without the detector's record: " << l.dump();
     if (d.is_null()) continue;
     ++ran;
-    for (const char* k : {"scene_features", "global_matches", "hypotheses", "candidates", "rejected", "miss", "sanity",
-                          "found"})
+    for (const char* k : {"scene_features", "global_matches", "hypotheses", "candidates", "views", "rejected", "miss",
+                          "sanity", "found"})
       ASSERT_TRUE(d.contains(k)) << k << " in " << d.dump();
+    EXPECT_TRUE(d["views"].is_boolean()) << d.dump();
     EXPECT_GT(d["scene_features"].get<int>(), 0);
     if (!d["found"].is_null()) {
       ++found;
