@@ -151,10 +151,20 @@ TEST(DetectorFacade, MatcherStatisticsAndTheReasonForAMiss) {
   opt.sanity.max_distance_m = 0.5;  // the target is 0.71 m away
   m = posterDetector(opt).detect(img, cam);
   EXPECT_FALSE(m.find(0));
-  EXPECT_EQ(m.stats[0].candidates, 1);
+  // Nothing accepted from the own features: the second pass on the view-synthesised features
+  // ran and found the same instance, refused the same way; the counts add both passes.
+  EXPECT_TRUE(m.stats[0].views_matched);
+  EXPECT_EQ(m.stats[0].candidates, 2);
   EXPECT_EQ(m.stats[0].miss, MissReason::kSanity);
   EXPECT_EQ(m.stats[0].sanity, SanityStatus::kTooFar);
   EXPECT_EQ(m.detections[0].sanity, SanityStatus::kTooFar);
+  opt.match.plane_views = false;
+  m = posterDetector(opt).detect(img, cam);
+  EXPECT_FALSE(m.stats[0].views_matched);
+  EXPECT_EQ(m.stats[0].candidates, 1);
+  EXPECT_EQ(m.stats[0].miss, MissReason::kSanity);
+  // Found by the own features: no second pass.
+  EXPECT_FALSE(posterDetector().detect(img, cam).stats[0].views_matched);
 }
 
 TEST(DetectorFacade, PosePriorRestrictsTheSearch) {

@@ -316,7 +316,7 @@ TEST(PoseReplay, TrackingFollowsTheSequenceWithinTheDetectorsTolerances) {
 }
 
 // Tracking against detection alone on a rendered sequence of three passes: the camera swings
-// to a 72 deg oblique view and back, slides until the target leaves the view and back, and
+// to a 78 deg oblique view and back, slides until the target leaves the view and back, and
 // slides until a panel hides it and back (motion blur, noise). Detection alone misses the
 // oblique views; tracking gives a pose on more frames, within the detector's tolerances, with
 // the modes following the scene, and the same output twice.
@@ -332,7 +332,7 @@ TEST(PoseReplay, TrackingGivesMorePosesThanDetectionAlone) {
     if (t < 1.0 / 3) {
       rt::ViewPoint v;
       v.distance_m = 0.8;
-      v.tilt_rad = 72 * M_PI / 180 * bump(3 * t);
+      v.tilt_rad = 78 * M_PI / 180 * bump(3 * t);
       return v;
     }
     if (t < 2.0 / 3) return rt::sidewaysView(0.7 * bump(3 * t - 1), 0.0, 0.8);
