@@ -509,11 +509,13 @@ TEST(HostileStartup, ADdsRobotThatNeverAnswersIsOneLineAndASignalEndsTheWaitAtOn
 }
 
 TEST(HostileStartup, ASignalMidRunStopsTheRobotAndIsOneLine) {
-  // A vision run on the simulator takes seconds of CPU: SIGINT after 2.5 s finds it running (or,
-  // on a loaded machine, still starting): one line, 130, the robot stopped by the controller.
+  // A vision run in a room world takes over 15 s of CPU (table_single's whole run can end within
+  // 2.5 s on an idle machine): SIGINT after 2.5 s finds it running (or, on a loaded machine,
+  // still starting): one line, 130, the robot stopped by the controller.
   const auto t0 = std::chrono::steady_clock::now();
   const AppRun r = runWith("timeout --preserve-status -k 10 -s INT 2.5", "enon_grasp",
-                           "--backend sim --enon " + kEnon + " --scenario " + kScenario);
+                           "--backend sim --enon " + kEnon + " --scenario " + kSource +
+                               "/config/scenarios/room_cookie_behind.yaml");
   const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   expectOneLine(r, 130, "enon_grasp: interrupted by SIGINT", "SIGINT mid-run");
   EXPECT_LT(took, 4.5);
