@@ -47,6 +47,7 @@ Json detectorJson(const servo::TargetObservation& o) {
             {"hypotheses", st.hypotheses_evaluated},
             {"candidates", st.candidates},
             {"views", st.views_matched},
+            {"weak_regions", st.weak_regions},
             {"rejected", {{"too_few_local_matches", r.too_few_local_matches},
                           {"too_few_inliers", r.too_few_inliers},
                           {"not_significant", r.not_significant},

@@ -540,6 +540,7 @@ MatchResult matchRegistered(const RegisteredObject& obj, const Features& scene, 
   }
   m.global_matches = std::max(m.global_matches, s.global_matches);
   m.hypotheses_evaluated += s.hypotheses_evaluated;
+  m.weak.insert(m.weak.end(), s.weak.begin(), s.weak.end());
   m.rejected.too_few_local_matches += s.rejected.too_few_local_matches;
   m.rejected.too_few_inliers += s.rejected.too_few_inliers;
   m.rejected.not_significant += s.rejected.not_significant;

@@ -189,6 +189,59 @@ double checkSpareCandidate(const CandidateContext& ctx, const MatchResult& m, Ob
   return ms;
 }
 
+// Smallest side of a weak region's extraction (px): a far pattern's box is a few px wide.
+constexpr double kMinWeakRegionPx = 48;
+
+// Weak evidence looked at again (MatchOptions::weak_regions): the boxes of the strongest weak
+// hypotheses of both passes (m.weak), each extracted again at the lower contrast threshold,
+// matched with the object's own and view-synthesised features, and checked like the frame's.
+// Adds to the stats and the tally; returns the time spent (ms, extraction included).
+double lookAgainAtWeakRegions(const CandidateContext& ctx, MatchResult& m, const Search& search, ObjectStats* st,
+                              ObjectTally* tally, DetectionResult* res) {
+  const auto t = Clock::now();
+  const DetectorOptions& opt = ctx.opt;
+  std::stable_sort(m.weak.begin(), m.weak.end(),
+                   [](const WeakRegion& a, const WeakRegion& b) { return a.local_matches > b.local_matches; });
+  SiftOptions sift = opt.sift;
+  sift.contrast_threshold = opt.match.weak_contrast_threshold;
+  const cv::Mat& gray = ctx.scene.image;
+  const cv::Rect frame = search.roi.area() > 0 ? search.roi : cv::Rect(0, 0, gray.cols, gray.rows);
+  // The views' index holds the own features too: one match over both.
+  const RegisteredObject* obj = ctx.object.with_views ? ctx.object.with_views.get() : &ctx.object;
+  std::vector<cv::Rect> looked;
+  for (const WeakRegion& w : m.weak) {
+    if (static_cast<int>(looked.size()) >= opt.match.weak_regions) break;
+    const cv::Point c(static_cast<int>(w.box.x + w.box.width / 2), static_cast<int>(w.box.y + w.box.height / 2));
+    if (std::any_of(looked.begin(), looked.end(), [&](const cv::Rect& r) { return r.contains(c); })) continue;
+    // At least kMinWeakRegionPx on a side: a box of a few px has no keypoints of its own.
+    const double side = std::max(w.box.width, kMinWeakRegionPx);
+    const cv::Rect box = cv::Rect(static_cast<int>(std::floor(c.x - side / 2)), static_cast<int>(std::floor(c.y - side / 2)),
+                                  static_cast<int>(std::ceil(side)), static_cast<int>(std::ceil(side))) & frame;
+    if (box.area() <= 0) continue;
+    looked.push_back(box);
+    ExtractRegion region = search.region;
+    region.roi = box;
+    region.inner_margin_px = 0;
+    region.downsample = 1;
+    // Keypoints up to half the box (3/4 of the pattern's predicted diagonal): larger ones are not
+    // the pattern's, and their context would make the crop most of the frame.
+    region.max_size_px = std::min(region.max_size_px, 0.5 * side);
+    region.min_size_px = std::min(region.min_size_px, region.max_size_px);
+    const Features f = extractFeatures(gray, ctx.camera, sift, region);
+    const GridIndex grid(f.keypoints, f.image_size);
+    ++st->weak_regions;
+    const MatchResult mw = matchRegistered(*obj, f, grid, opt.match);
+    st->hypotheses_evaluated += mw.hypotheses_evaluated;
+    st->candidates += static_cast<int>(mw.instances.size());
+    addRejects(mw.rejected, &st->rejected);
+    const CandidateContext wctx{*obj, ctx.id, opt, f, &grid, ctx.camera};
+    for (const MatchCandidate& matched : mw.instances) tally->add(verifyCandidate(wctx, matched), st, res);
+    if (tally->found > 0) break;
+  }
+  m.rejected = st->rejected;
+  return msSince(t);
+}
+
 // Matching and the verification stage for one object; appends its detections (or its not-found
 // entry) and stats to *res and adds the time spent to res->time_ms.
 void detectObject(const RegisteredObject& obj, int id, const DetectorOptions& opt, const Search& search,
@@ -244,6 +297,7 @@ void detectObject(const RegisteredObject& obj, int id, const DetectorOptions& op
     addRejects(mv.rejected, &st.rejected);
     m.global_matches = st.global_matches;
     m.rejected = st.rejected;
+    m.weak.insert(m.weak.end(), mv.weak.begin(), mv.weak.end());
     const CandidateContext vctx{*obj.with_views, id, ctx.opt, scene, &extraction->grid, camera};
     for (const MatchCandidate& matched : mv.instances) tally.add(verifyCandidate(vctx, matched), &st, res);
     if (tally.found == 0 && opt.verify.enabled && opt.verify.spare_candidate && !mv.instances.empty() &&
@@ -251,6 +305,11 @@ void detectObject(const RegisteredObject& obj, int id, const DetectorOptions& op
       views_ms += checkSpareCandidate(vctx, mv, &st, &tally, res);
     res->time_ms.match += views_ms;
     spare_ms += views_ms;
+  }
+  if (tally.found == 0 && extraction && opt.match.weak_regions > 0 && !extraction->features.image.empty()) {
+    const double weak_ms = lookAgainAtWeakRegions(ctx, m, search, &st, &tally, res);
+    res->time_ms.match += weak_ms;
+    spare_ms += weak_ms;
   }
   if (tally.found == 0) {
     res->detections.emplace_back();

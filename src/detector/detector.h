@@ -167,6 +167,9 @@ struct ObjectStats {
   /// The object's own features found nothing and its view-synthesised features were matched too
   /// (match.plane_views); the counts above then add both passes (global_matches: the larger).
   bool views_matched = false;
+  /// Nothing accepted: boxes of weak hypotheses extracted again at the lower contrast threshold
+  /// and matched (match.weak_regions); the counts above include their matching.
+  int weak_regions = 0;
   MatchRejects rejected;         ///< hypotheses / fits that ended at each matcher stage
   MissReason miss = MissReason::kNone;
   SanityStatus sanity = SanityStatus::kOk;  ///< with kSanity: the best candidate's status

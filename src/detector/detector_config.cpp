@@ -39,6 +39,8 @@ void visitFields(O& o, Visit&& v) {
   v("match.affine_below_px", o.match.affine_below_px);
   v("match.cylinder_views", o.match.cylinder_views);
   v("match.plane_views", o.match.plane_views);
+  v("match.weak_regions", o.match.weak_regions);
+  v("match.weak_contrast_threshold", o.match.weak_contrast_threshold);
   v("match.max_log10_nfa", o.match.max_log10_nfa);
   v("match.seed", o.match.seed);
   v("pose", o.pose);

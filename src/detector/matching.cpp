@@ -28,6 +28,12 @@ constexpr double kHomographyErrorPerPx = 0.03; // extrapolating a fit from the s
 constexpr double kAlignedErrorPx = 1.0;        // of a given (e.g. photometric) alignment: matchUnderHomography
 constexpr int kQuickNeighbours = 40;           // detectable reference neighbours tried in the quick test
 constexpr int kQuickMinMatches = 4;            // quick test passes with this many local matches
+// Weak evidence: a hypothesis that reached this many local matches, one more than the quick test
+// (at 4 no more far targets found, more time spent; at 6 fewer: docs/results.md).
+constexpr int kWeakMinMatches = 5;
+// Weak evidence is kept for patterns predicted at most this large (diagonal, scene px): a larger
+// one has its features above the frame's contrast threshold, and its box would be most of a frame.
+constexpr double kMaxWeakDiagonalPx = 128;
 constexpr int kPass1MinMatches = 6;            // pass-1 matches needed to fit a homography
 constexpr int kPass1Neighbours = 200;          // detectable reference neighbours tried in pass 1
 constexpr double kOverlapFraction = 0.25;      // instances overlapping more than this conflict
@@ -366,7 +372,7 @@ std::vector<Correspondence> toCorrespondences(const std::vector<LocalMatch>& m) 
 /// cheap and perspective-tolerant by growing it: a quick test on r's nearest neighbours, pass 1
 /// under T^k on r's neighbourhood, then two passes over all reference features under the
 /// homography fitted to the previous pass.
-bool evaluateHypothesis(const Context& cx, int r, int s, Candidate* out) {
+bool evaluateHypothesis(const Context& cx, int r, int s, Candidate* out, int* reached) {
   const auto& rk = cx.ref.features.keypoints;
   const auto& sk = cx.scene.keypoints;
   const Predictor sim = Predictor::similarity(rk[r], sk[s]);
@@ -377,11 +383,12 @@ bool evaluateHypothesis(const Context& cx, int r, int s, Candidate* out) {
   auto simRadius = [&](const Vec2& xs) {
     return factor * (kSimilarityErrorPx + kSimilarityErrorPerPx * (xs - seed).norm());
   };
+  std::vector<LocalMatch> m;
   auto tooFewLocal = [&] {
     ++cx.rejects->too_few_local_matches;
+    *reached = std::max(*reached, static_cast<int>(m.size()));
     return false;
   };
-  std::vector<LocalMatch> m;
   // r's nearest reference features that are detectable at this scale: a far (small) instance
   // shows only the coarse features, which can lie beyond the nearest few hundred.
   auto detectable = [&](int i) { return rk[i].size * sim.dscale >= cx.min_scene_size; };
@@ -416,6 +423,7 @@ bool evaluateHypothesis(const Context& cx, int r, int s, Candidate* out) {
       localSearch(cx, hom, nullptr, [&](const Vec2&) { return factor * e0; }, &m, &tested);
     }
   }
+  *reached = std::max(*reached, static_cast<int>(m.size()));
   return makeCandidate(cx, toCorrespondences(m), out, tested);
 }
 
@@ -476,6 +484,7 @@ MatchResult matchPaper(const Context& cx, const std::vector<NearestTwo>& nn) {
   });
 
   std::vector<Candidate> cands;
+  std::vector<WeakRegion> weak;
   std::vector<char> covered(sk.size(), 0);
   bool clean_candidate = false;
   for (const Seed& sd : seeds) {
@@ -499,12 +508,32 @@ MatchResult matchPaper(const Context& cx, const std::vector<NearestTwo>& nn) {
     if (explained) continue;
     ++res.hypotheses_evaluated;
     Candidate c;
-    if (!evaluateHypothesis(cx, sd.ref, sd.scene, &c)) continue;
+    int reached = 0;
+    if (!evaluateHypothesis(cx, sd.ref, sd.scene, &c, &reached)) {
+      // Weak evidence: the pattern's bounding square under the seed's similarity, grown by half
+      // (one keypoint's scale and orientation error, perspective).
+      const Predictor p = Predictor::similarity(rk[sd.ref], sk[sd.scene]);
+      const double diagonal = p.dscale * cx.ref.diagonal_px;
+      if (reached >= kWeakMinMatches && diagonal <= kMaxWeakDiagonalPx) {
+        const Vec2 c0 = p.A * (cx.ref.centre_px - p.xr0) + p.xs0;
+        const double side = 1.5 * diagonal;
+        weak.push_back({cv::Rect2d(c0.x() - side / 2, c0.y() - side / 2, side, side), reached});
+      }
+      continue;
+    }
     clean_candidate |= !sd.ambiguous;
     for (const auto& m : c.inliers) covered[m.scene] = 1;
     cands.push_back(std::move(c));
   }
   res.instances = selectInstances(cx, std::move(cands));
+  std::stable_sort(weak.begin(), weak.end(),
+                   [](const WeakRegion& a, const WeakRegion& b) { return a.local_matches > b.local_matches; });
+  for (const WeakRegion& w : weak) {
+    if (static_cast<int>(res.weak.size()) >= kMaxWeakRegions) break;
+    const cv::Point2d c(w.box.x + w.box.width / 2, w.box.y + w.box.height / 2);
+    if (std::none_of(res.weak.begin(), res.weak.end(), [&](const WeakRegion& o) { return o.box.contains(c); }))
+      res.weak.push_back(w);
+  }
   return res;
 }
 
@@ -560,6 +589,10 @@ void MatchOptions::check() const {
                   "must be in [0, 1)");
   refgrasp::check(std::isfinite(affine_below_px) && affine_below_px >= 0, "MatchOptions.affine_below_px",
                   "must be >= 0");
+  refgrasp::check(weak_regions >= 0 && weak_regions <= kMaxWeakRegions, "MatchOptions.weak_regions",
+                  "must be in [0, " + std::to_string(kMaxWeakRegions) + "]");
+  refgrasp::check(weak_contrast_threshold > 0 && weak_contrast_threshold < 1, "MatchOptions.weak_contrast_threshold",
+                  "must be in (0, 1)");
   refgrasp::check(!std::isnan(max_log10_nfa) && max_log10_nfa > -std::numeric_limits<double>::infinity(),
                   "MatchOptions.max_log10_nfa", "must be a number or +inf");
 }

@@ -20,6 +20,9 @@ namespace refgrasp::detector {
 
 enum class MatcherType { kPaper, kRatio };
 
+/// Weak regions a match result keeps (MatchResult::weak).
+constexpr int kMaxWeakRegions = 4;
+
 struct MatchOptions {
   MatcherType matcher = MatcherType::kPaper;
   double global_ratio = 0.8;           ///< Lowe ratio for global matches (seeds / baseline)
@@ -69,6 +72,16 @@ struct MatchOptions {
   /// reference photographed at another angle; second: where the own features find the object,
   /// their fit is the more precise (docs/detector.md).
   bool plane_views = true;
+  /// Weak evidence looked at again: when nothing is accepted in a frame, the predicted pattern
+  /// boxes of up to this many hypotheses with a few local matches (MatchResult::weak) get SIFT
+  /// again at weak_contrast_threshold, and those features are matched and checked as the
+  /// frame's. 0: off. A small, blurred pattern's DoG extrema fall below the frame's contrast
+  /// threshold; a lower one over the whole frame costs about a fifth more extraction time
+  /// (docs/detector.md), over a box only where something already points.
+  int weak_regions = 2;
+  /// SIFT contrast threshold (gray levels / 255, as SiftOptions) of the weak regions' extraction,
+  /// (0, 1); half the frame's default 0.04: the extrema of a 30-50 px pattern after blur.
+  double weak_contrast_threshold = 0.02;
   uint64_t seed = 0;
   /// Throws std::invalid_argument on nonsense.
   void check() const;
@@ -98,9 +111,19 @@ struct MatchRejects {
   int narrow_inlier_spread = 0;    ///< inliers span < min_inlier_spread of the reference
 };
 
+/// A hypothesis that reached 5 or more local matches but gave no candidate, for a pattern
+/// predicted at most 128 px across (diagonal): where it put the pattern.
+struct WeakRegion {
+  cv::Rect2d box;         ///< scene px: the pattern's bounding square under the seed's similarity, grown by half
+  int local_matches = 0;  ///< local matches its search reached (the most over its passes)
+};
+
 struct MatchResult {
   /// Best first, disjoint in the scene, each with >= min_inliers and a plausible H.
   std::vector<MatchCandidate> instances;
+  /// paper matcher: weak evidence, most local matches first, none centred in a stronger one's
+  /// box, at most kMaxWeakRegions (the detector looks again at opt.weak_regions of them).
+  std::vector<WeakRegion> weak;
   int hypotheses_evaluated = 0;  ///< hypotheses given a local search (paper) / 1 (ratio)
   int global_matches = 0;        ///< scene features passing the global ratio test
   MatchRejects rejected;

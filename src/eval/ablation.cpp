@@ -52,6 +52,7 @@ std::vector<AblationVariant> verificationAblation() {
        [](O* o) { o->dense.max_2d_coarsening = 1e9; }},
       {"no view-synthesised reference features", "match.plane_views: false",
        [](O* o) { o->match.plane_views = false; }},
+      {"no weak regions looked at again", "match.weak_regions: 0", [](O* o) { o->match.weak_regions = 0; }},
   };
 }
 

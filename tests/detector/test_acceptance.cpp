@@ -24,28 +24,34 @@ constexpr double kDeg = M_PI / 180;
 }
 
 TEST(Acceptance, FewConsistentMatchesOnAFarTargetAreAccepted) {
-  // 20 cm targets at 2.0-2.6 m (42-55 px wide) in clutter: the default (a-contrario, floor of
-  // 8 inliers) against a count rule (12 inliers, no a-contrario test).
-  DetectorOptions count_rule;
+  // 20 cm targets at 2.0-2.6 m (42-55 px wide) in clutter: the default acceptance (a-contrario,
+  // floor of 8 inliers) against a count rule (12 inliers, no a-contrario test), both on the
+  // frame's features alone: a weak region looked at again (match.weak_regions) gives either rule
+  // more matches, which is not the rule. The full defaults are checked too.
+  DetectorOptions a_contrario, count_rule;
+  a_contrario.match.weak_regions = 0;
+  count_rule.match.weak_regions = 0;
   count_rule.match.min_inliers = 12;
   count_rule.match.max_log10_nfa = HUGE_VAL;
   const Intrinsics cam = sceneCamera();
-  int found = 0, found_count = 0, found_with_few = 0, wrong = 0;
+  int found = 0, found_count = 0, found_with_few = 0, wrong = 0, found_default = 0, wrong_default = 0;
   const int kScenes = 20;
   std::mt19937_64 rng(77);
   for (int k = 0; k < kScenes; ++k) {
     const std::string name = targetTextures()[k % targetTextures().size()];
     const cv::Mat tex = loadMedia(name);
     const double h = 0.2 * tex.rows / tex.cols;
-    Detector det, det_count(count_rule);
+    Detector det(a_contrario), det_count(count_rule), det_default;
     det.addObject(textureObject("t", tex, 0.2));
     det_count.addObject(textureObject("t", tex, 0.2));
+    det_default.addObject(textureObject("t", tex, 0.2));
     SceneSpec spec;
     spec.cMo = randomVisiblePose(rng, cam, 0.2, h, 2.0, 2.6, 40 * kDeg);
     spec.seed = 4200 + k;
     const RenderedScene s = renderTarget(cam, tex, 0.2, h, spec);
     const auto d = det.detect(s.image, cam).find(0);
     const auto dc = det_count.detect(s.image, cam).find(0);
+    const auto dd = det_default.detect(s.image, cam).find(0);
     auto right = [&](const Detection& x) {
       double e = 0;
       for (int i = 0; i < 4; ++i) e = std::max(e, (x.corners[i] - s.corners[i]).norm());
@@ -56,10 +62,14 @@ TEST(Acceptance, FewConsistentMatchesOnAFarTargetAreAccepted) {
       if (right(*d) && d->inliers < 12) ++found_with_few;
     }
     if (dc && right(*dc)) ++found_count;
+    if (dd) right(*dd) ? ++found_default : ++wrong_default;
   }
-  std::printf("far targets (2.0-2.6 m): a-contrario %d/%d (%d with < 12 inliers), count rule %d/%d, wrong %d\n",
-              found, kScenes, found_with_few, found_count, kScenes, wrong);
+  std::printf("far targets (2.0-2.6 m): a-contrario %d/%d (%d with < 12 inliers), count rule %d/%d, wrong %d; "
+              "defaults %d/%d, wrong %d\n",
+              found, kScenes, found_with_few, found_count, kScenes, wrong, found_default, kScenes, wrong_default);
   EXPECT_EQ(wrong, 0);
+  EXPECT_EQ(wrong_default, 0);
+  EXPECT_GE(found_default, found);
   EXPECT_GT(found, found_count);
   EXPECT_GE(found_with_few, 1);
 }

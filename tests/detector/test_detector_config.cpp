@@ -105,6 +105,8 @@ TEST(DetectorConfig, BadFilesGiveOneLineErrorsNamingTheField) {
       {"range3k.yaml", "verify: {periodic_min_strong_cells: -1}\n", "verify.periodic_min_strong_cells: must be in [0, 9]"},
       {"bool2.yaml", "verify: {spare_candidate: 2}\n", "verify.spare_candidate: expected true or false"},
       {"bool3.yaml", "verify: {period_rematch: maybe}\n", "verify.period_rematch: expected true or false"},
+      {"weak_regions.yaml", "match: {weak_regions: 9}\n", "match.weak_regions: must be in [0, 4]"},
+      {"weak_contrast.yaml", "match: {weak_contrast_threshold: 0}\n", "match.weak_contrast_threshold: must be in (0, 1)"},
       {"range2b.yaml", "sanity: {max_pose_gap_px: 0}\n", "sanity.max_pose_gap_px: must be in (0, 1e9] (1e9: never)"},
       {"range3d.yaml", "verify: {period_ambiguity_cells: 11}\n", "verify.period_ambiguity_cells: must be in [1, 10] (10: never)"},
       {"fraction2.yaml", "verify: {period_ambiguity_cells: 2.5}\n", "verify.period_ambiguity_cells: expected an integer"},

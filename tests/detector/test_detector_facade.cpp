@@ -163,8 +163,9 @@ TEST(DetectorFacade, MatcherStatisticsAndTheReasonForAMiss) {
   EXPECT_FALSE(m.stats[0].views_matched);
   EXPECT_EQ(m.stats[0].candidates, 1);
   EXPECT_EQ(m.stats[0].miss, MissReason::kSanity);
-  // Found by the own features: no second pass.
+  // Found by the own features: no second pass, no weak region looked at again.
   EXPECT_FALSE(posterDetector().detect(img, cam).stats[0].views_matched);
+  EXPECT_EQ(posterDetector().detect(img, cam).stats[0].weak_regions, 0);
 }
 
 TEST(DetectorFacade, PosePriorRestrictsTheSearch) {

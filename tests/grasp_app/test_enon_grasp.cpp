@@ -118,10 +118,13 @@ TEST(EnonGraspApp, TheLogSaysWhatTheDetectorSawOnEveryFrameItRan) {
     if (l["source"] == "detect") EXPECT_FALSE(d.is_null()) << "a detection without the detector's record: " << l.dump();
     if (d.is_null()) continue;
     ++ran;
-    for (const char* k : {"scene_features", "global_matches", "hypotheses", "candidates", "views", "rejected", "miss",
-                          "sanity", "found"})
+    for (const char* k : {"scene_features", "global_matches", "hypotheses", "candidates", "views", "weak_regions",
+                          "rejected", "miss", "sanity", "found"})
       ASSERT_TRUE(d.contains(k)) << k << " in " << d.dump();
     EXPECT_TRUE(d["views"].is_boolean()) << d.dump();
+    EXPECT_TRUE(d["weak_regions"].is_number_integer()) << d.dump();
+    EXPECT_GE(d["weak_regions"].get<int>(), 0);
+    EXPECT_LE(d["weak_regions"].get<int>(), 2) << "match.weak_regions' default";
     EXPECT_GT(d["scene_features"].get<int>(), 0);
     if (!d["found"].is_null()) {
       ++found;
