@@ -211,7 +211,11 @@ double lookAgainAtWeakRegions(const CandidateContext& ctx, MatchResult& m, const
   std::vector<cv::Rect> looked;
   for (const WeakRegion& w : m.weak) {
     if (static_cast<int>(looked.size()) >= opt.match.weak_regions) break;
-    const cv::Point c(static_cast<int>(w.box.x + w.box.width / 2), static_cast<int>(w.box.y + w.box.height / 2));
+    // The box is in undistorted px (the keypoints'); the extraction reads the real image.
+    const Eigen::Vector2d cd =
+        distortPixel(ctx.camera, Eigen::Vector2d(w.box.x + w.box.width / 2, w.box.y + w.box.height / 2));
+    if (!cd.allFinite()) continue;
+    const cv::Point c(static_cast<int>(std::lround(cd.x())), static_cast<int>(std::lround(cd.y())));
     if (std::any_of(looked.begin(), looked.end(), [&](const cv::Rect& r) { return r.contains(c); })) continue;
     // At least kMinWeakRegionPx on a side: a box of a few px has no keypoints of its own.
     const double side = std::max(w.box.width, kMinWeakRegionPx);

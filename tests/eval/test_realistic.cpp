@@ -611,4 +611,24 @@ TEST(RealisticSets, WeakRegionsLookedAtAgainFindSmallFaces) {
   on.detector.match.plane_views = off.detector.match.plane_views = true;
   on.detector.match.weak_regions = 2;
   expectFoundOnlyWith("weak regions", chunks, on, off, 55);
+
+  // The detector's account of it (ObjectStats, control.jsonl's detector.weak_regions): the first
+  // frame found by a box looked at again, the boxes counted, at most as many as asked for.
+  for (const RealisticSetSpec& spec : realisticSets(1, 160)) {
+    if (spec.name != "photos") continue;
+    const RealisticSet set(spec);
+    const SetFrame f = set.frame(88);
+    for (const int n : {0, 1, 2}) {
+      detector::DetectorOptions opt;
+      opt.match.weak_regions = n;
+      detector::Detector det(opt);
+      det.addObject(set.objects()[static_cast<size_t>(f.object)].model);
+      const detector::DetectionResult d = det.detect(f.image, f.camera);
+      ASSERT_TRUE(d.ok) << d.error;
+      ASSERT_EQ(d.stats.size(), 1u);
+      EXPECT_EQ(d.find(0).has_value(), n > 0) << n;
+      EXPECT_TRUE(d.stats[0].views_matched) << n;
+      EXPECT_EQ(d.stats[0].weak_regions, n == 0 ? 0 : 1) << n << ": found in the strongest box";
+    }
+  }
 }
