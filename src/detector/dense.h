@@ -18,7 +18,7 @@ namespace refgrasp::detector {
 struct DenseRefineOptions {
   bool enabled = true;               ///< refine H photometrically (before the refined pose; 2D-only objects: their H)
   int max_iterations = 20;           ///< ECC iterations
-  double epsilon = 1e-4;             ///< ECC stop: change of the warp parameters
+  double epsilon = 1e-4;             ///< ECC stop: change of the correlation coefficient per iteration
   int max_template_px = 16384;       ///< coarser pyramid level until the template fits (speed)
   double max_corner_shift_px = 3.0;  ///< reject (keep the feature H) if a corner moves more
   double min_correlation = 0.5;      ///< reject below this final ECC correlation coefficient
