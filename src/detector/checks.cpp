@@ -51,7 +51,7 @@ CheckOutcome checkPose(const CandidateContext& ctx, const MatchCandidate& cand, 
 // 2D-only objects: H is the dense alignment's when it converged (every pixel of the pattern, not
 // a few keypoints) on a template not much coarser than the scene, the features' otherwise,
 // refitted to every reference feature (not only the strongest, index's cap) that agrees with it.
-void placeTwoD(const CandidateContext& ctx, const MatchCandidate& cand, const DenseRefineResult* dense, Detection* d) {
+bool placeTwoD(const CandidateContext& ctx, const MatchCandidate& cand, const DenseRefineResult* dense, Detection* d) {
   const RegisteredObject& obj = ctx.object;
   const DetectorOptions& opt = ctx.opt;
   bool dense_placed = false;
@@ -79,6 +79,7 @@ void placeTwoD(const CandidateContext& ctx, const MatchCandidate& cand, const De
     if (refit && refit->matches > static_cast<int>(cand.inliers.size()) && moved <= radius) d->H = refit->H;
   }
   for (int i = 0; i < 4; ++i) d->corners[i] = distortPixel(ctx.camera, applyHomography(d->H, obj.corners_und_px[i]));
+  return dense_placed;
 }
 
 // Step 4: the warped reference against the scene.
@@ -141,7 +142,14 @@ CheckOutcome checkCandidate(const CandidateContext& ctx, const MatchCandidate& c
     const CheckOutcome pose = checkPose(ctx, cand, dense, &d);
     if (pose != CheckOutcome::kOk) return pose;
   } else {
-    placeTwoD(ctx, cand, dense, &d);
+    // A second-pass candidate of a 2D-only object is placed by the dense alignment or not at all:
+    // its corners are the whole report, and a few synthesised features fit them several px off
+    // (a 3D object's feature pose has the pose-gap check and the RMS bound instead).
+    const bool dense_placed = placeTwoD(ctx, cand, dense, &d);
+    const VerifyOptions& vo = ctx.opt.verify;
+    if (vo.enabled && vo.second_pass_2d_needs_dense && ctx.second_pass && !dense_placed && ctx.opt.dense.enabled &&
+        ctx.object.dense_usable && !ctx.scene.image.empty())
+      return CheckOutcome::kNotVerified;
   }
   d.sanity = checkDetection(d.corners, d.cMo, ctx.camera.width, ctx.camera.height, ctx.opt.sanity);
   if (d.sanity != SanityStatus::kOk) return CheckOutcome::kSanity;

@@ -36,6 +36,9 @@ struct CandidateContext {
   const Features& scene;  ///< features of the object's search region, Features::image the frame
   const GridIndex* grid;  ///< their index; null when nothing was extracted
   const Intrinsics& camera;
+  /// The candidate comes from the second pass (view-synthesised features or a weak region looked
+  /// at again), not from the reference's own features in the frame.
+  bool second_pass = false;
 };
 
 enum class CheckOutcome { kOk, kPoseFailed, kPoseDisagrees, kSanity, kNotVerified };

@@ -238,7 +238,7 @@ double lookAgainAtWeakRegions(const CandidateContext& ctx, MatchResult& m, const
     st->hypotheses_evaluated += mw.hypotheses_evaluated;
     st->candidates += static_cast<int>(mw.instances.size());
     addRejects(mw.rejected, &st->rejected);
-    const CandidateContext wctx{*obj, ctx.id, opt, f, &grid, ctx.camera};
+    const CandidateContext wctx{*obj, ctx.id, opt, f, &grid, ctx.camera, true};
     for (const MatchCandidate& matched : mw.instances) tally->add(verifyCandidate(wctx, matched), st, res);
     if (tally->found > 0) break;
   }
@@ -302,7 +302,7 @@ void detectObject(const RegisteredObject& obj, int id, const DetectorOptions& op
     m.global_matches = st.global_matches;
     m.rejected = st.rejected;
     m.weak.insert(m.weak.end(), mv.weak.begin(), mv.weak.end());
-    const CandidateContext vctx{*obj.with_views, id, ctx.opt, scene, &extraction->grid, camera};
+    const CandidateContext vctx{*obj.with_views, id, ctx.opt, scene, &extraction->grid, camera, true};
     for (const MatchCandidate& matched : mv.instances) tally.add(verifyCandidate(vctx, matched), &st, res);
     if (tally.found == 0 && opt.verify.enabled && opt.verify.spare_candidate && !mv.instances.empty() &&
         static_cast<int>(mv.instances.size()) >= opt.match.max_instances)
