@@ -45,6 +45,11 @@ CheckOutcome checkPose(const CandidateContext& ctx, const MatchCandidate& cand, 
   // one rigid plane (on a facade, matches spanning two windows).
   if (opt.verify.enabled && from_features && !(p.rms_px <= opt.verify.max_feature_pose_rms_px))
     return CheckOutcome::kNotVerified;
+  // A second-pass candidate of a reference with repeat periods is placed by the dense alignment
+  // or not at all: synthesised features one period off give a pose that passes the checks above.
+  if (opt.verify.enabled && opt.verify.second_pass_needs_dense && ctx.second_pass && from_features &&
+      !obj.periods.empty() && opt.dense.enabled && obj.dense_usable)
+    return CheckOutcome::kNotVerified;
   return CheckOutcome::kOk;
 }
 
@@ -147,7 +152,7 @@ CheckOutcome checkCandidate(const CandidateContext& ctx, const MatchCandidate& c
     // (a 3D object's feature pose has the pose-gap check and the RMS bound instead).
     const bool dense_placed = placeTwoD(ctx, cand, dense, &d);
     const VerifyOptions& vo = ctx.opt.verify;
-    if (vo.enabled && vo.second_pass_2d_needs_dense && ctx.second_pass && !dense_placed && ctx.opt.dense.enabled &&
+    if (vo.enabled && vo.second_pass_needs_dense && ctx.second_pass && !dense_placed && ctx.opt.dense.enabled &&
         ctx.object.dense_usable && !ctx.scene.image.empty())
       return CheckOutcome::kNotVerified;
   }

@@ -77,7 +77,7 @@ void visitFields(O& o, Visit&& v) {
   v("verify.min_strong_cells", o.verify.min_strong_cells);
   v("verify.periodic_min_strong_cells", o.verify.periodic_min_strong_cells);
   v("verify.realign", o.verify.realign);
-  v("verify.second_pass_2d_needs_dense", o.verify.second_pass_2d_needs_dense);
+  v("verify.second_pass_needs_dense", o.verify.second_pass_needs_dense);
   v("verify.realign_trusted_correlation", o.verify.realign_trusted_correlation);
   v("verify.realign_verified_correlation", o.verify.realign_verified_correlation);
   v("verify.realign_verified_gain", o.verify.realign_verified_gain);

@@ -43,12 +43,14 @@ struct VerifyOptions {
   /// matched again there, and that candidate kept when the features and the scene support it
   /// better. false: off, with the period rules that follow it.
   bool realign = true;
-  /// A 2D-only object's candidate from the second pass (view-synthesised features, a weak region
-  /// looked at again) is reported only when the dense alignment places it: its corners are the
-  /// whole report, and 9-16 synthesised features on a far face fit them 3-20 px off while the
-  /// warped reference still correlates at the verification's coarse resolution. 3D objects: no
-  /// rule (their feature pose has the pose-gap check and max_feature_pose_rms_px). false: off.
-  bool second_pass_2d_needs_dense = true;
+  /// A candidate from the second pass (view-synthesised features, a weak region looked at again)
+  /// is reported only when the dense alignment places it, for a 2D-only object and for a
+  /// reference with repeat periods: there a few synthesised features fit corners several px (or
+  /// a period) off while the warped reference still correlates at the verification's coarse
+  /// resolution, and no other check refuses it (a 2D-only object has no pose checks; on a
+  /// repeated motif a pose a period off passes them). Other 3D objects keep their feature pose,
+  /// checked by the pose gap and max_feature_pose_rms_px. false: off.
+  bool second_pass_needs_dense = true;
   /// A refused dense refinement re-run with room to move (half the pattern's diagonal) becomes
   /// the instance's alignment at this ECC correlation or more: few features on a small oblique
   /// target fit a homography a few pixels off that ECC, started there, corrects. 1: never.

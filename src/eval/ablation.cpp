@@ -53,8 +53,8 @@ std::vector<AblationVariant> verificationAblation() {
       {"no view-synthesised reference features", "match.plane_views: false",
        [](O* o) { o->match.plane_views = false; }},
       {"no weak regions looked at again", "match.weak_regions: 0", [](O* o) { o->match.weak_regions = 0; }},
-      {"2D: second-pass corners from the features too", "verify.second_pass_2d_needs_dense: false",
-       [](O* o) { o->verify.second_pass_2d_needs_dense = false; }},
+      {"second pass placed by its features too (2D-only, periodic)", "verify.second_pass_needs_dense: false",
+       [](O* o) { o->verify.second_pass_needs_dense = false; }},
   };
 }
 
