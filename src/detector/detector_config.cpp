@@ -77,7 +77,6 @@ void visitFields(O& o, Visit&& v) {
   v("verify.min_strong_cells", o.verify.min_strong_cells);
   v("verify.periodic_min_strong_cells", o.verify.periodic_min_strong_cells);
   v("verify.realign", o.verify.realign);
-  v("verify.second_pass_needs_dense", o.verify.second_pass_needs_dense);
   v("verify.realign_trusted_correlation", o.verify.realign_trusted_correlation);
   v("verify.realign_verified_correlation", o.verify.realign_verified_correlation);
   v("verify.realign_verified_gain", o.verify.realign_verified_gain);
@@ -89,6 +88,7 @@ void visitFields(O& o, Visit&& v) {
   v("verify.period_ambiguity_cells", o.verify.period_ambiguity_cells);
   v("verify.period_switch_correlation", o.verify.period_switch_correlation);
   v("verify.max_feature_pose_rms_px", o.verify.max_feature_pose_rms_px);
+  v("verify.second_pass_needs_dense", o.verify.second_pass_needs_dense);
   v("multiview.max_gap_m", o.multiview.max_gap_m);
   v("multiview.max_gap_fraction", o.multiview.max_gap_fraction);
   v("multiview.max_rotation_gap_rad", o.multiview.max_rotation_gap_rad);

@@ -43,14 +43,6 @@ struct VerifyOptions {
   /// matched again there, and that candidate kept when the features and the scene support it
   /// better. false: off, with the period rules that follow it.
   bool realign = true;
-  /// A candidate from the second pass (view-synthesised features, a weak region looked at again)
-  /// is reported only when the dense alignment places it, for a 2D-only object and for a
-  /// reference with repeat periods: there a few synthesised features fit corners several px (or
-  /// a period) off while the warped reference still correlates at the verification's coarse
-  /// resolution, and no other check refuses it (a 2D-only object has no pose checks; on a
-  /// repeated motif a pose a period off passes them). Other 3D objects keep their feature pose,
-  /// checked by the pose gap and max_feature_pose_rms_px. false: off.
-  bool second_pass_needs_dense = true;
   /// A refused dense refinement re-run with room to move (half the pattern's diagonal) becomes
   /// the instance's alignment at this ECC correlation or more: few features on a small oblique
   /// target fit a homography a few pixels off that ECC, started there, corrects. 1: never.
@@ -88,6 +80,14 @@ struct VerifyOptions {
   /// A pose fitted to the matched features (the dense alignment refused) whose reprojection RMS
   /// (px) exceeds this is refused: the consensus does not come from one rigid plane. 1000: never.
   double max_feature_pose_rms_px = 1.75;
+  /// A candidate from the second pass (view-synthesised features, a weak region looked at again)
+  /// is reported only when the dense alignment places it, for a 2D-only object and for a
+  /// reference with repeat periods: there a few synthesised features fit corners several px (or
+  /// a period) off while the warped reference still correlates at the verification's coarse
+  /// resolution, and no other check refuses it (a 2D-only object has no pose checks; on a
+  /// repeated motif a pose a period off passes them). Other 3D objects keep their feature pose,
+  /// checked by the pose gap and max_feature_pose_rms_px. false: off.
+  bool second_pass_needs_dense = true;
   /// Throws std::invalid_argument "VerifyOptions.<field>: <problem>".
   void check() const;
 };
