@@ -22,6 +22,14 @@ double distinctAlignmentPx(double pattern_diagonal_px) { return std::max(4.0, 0.
 
 namespace {
 
+// VerifyOptions::second_pass_needs_dense: a candidate of the second pass (views, weak regions)
+// that the dense alignment could have placed but did not (dense_placed false) is not reported.
+bool secondPassUnplaced(const CandidateContext& ctx, bool dense_placed) {
+  const DetectorOptions& opt = ctx.opt;
+  return opt.verify.enabled && opt.verify.second_pass_needs_dense && ctx.second_pass && !dense_placed &&
+         opt.dense.enabled && ctx.object.dense_usable && !ctx.scene.image.empty();
+}
+
 // 3D objects: the pose, and whether it puts the pattern where the matches put it (a pose caught
 // in the wrong one of a plane's two solutions, or pulled by a few bad points, does not).
 CheckOutcome checkPose(const CandidateContext& ctx, const MatchCandidate& cand, const DenseRefineResult* dense,
@@ -45,17 +53,16 @@ CheckOutcome checkPose(const CandidateContext& ctx, const MatchCandidate& cand, 
   // one rigid plane (on a facade, matches spanning two windows).
   if (opt.verify.enabled && from_features && !(p.rms_px <= opt.verify.max_feature_pose_rms_px))
     return CheckOutcome::kNotVerified;
-  // A second-pass candidate of a reference with repeat periods is placed by the dense alignment
-  // or not at all: synthesised features one period off give a pose that passes the checks above.
-  if (opt.verify.enabled && opt.verify.second_pass_needs_dense && ctx.second_pass && from_features &&
-      !obj.periods.empty() && opt.dense.enabled && obj.dense_usable)
-    return CheckOutcome::kNotVerified;
+  // On a reference with repeat periods synthesised features one period off give a pose that
+  // passes the checks above.
+  if (!obj.periods.empty() && secondPassUnplaced(ctx, !from_features)) return CheckOutcome::kNotVerified;
   return CheckOutcome::kOk;
 }
 
 // 2D-only objects: H is the dense alignment's when it converged (every pixel of the pattern, not
 // a few keypoints) on a template not much coarser than the scene, the features' otherwise,
 // refitted to every reference feature (not only the strongest, index's cap) that agrees with it.
+// Returns whether the dense alignment placed it.
 bool placeTwoD(const CandidateContext& ctx, const MatchCandidate& cand, const DenseRefineResult* dense, Detection* d) {
   const RegisteredObject& obj = ctx.object;
   const DetectorOptions& opt = ctx.opt;
@@ -147,14 +154,9 @@ CheckOutcome checkCandidate(const CandidateContext& ctx, const MatchCandidate& c
     const CheckOutcome pose = checkPose(ctx, cand, dense, &d);
     if (pose != CheckOutcome::kOk) return pose;
   } else {
-    // A second-pass candidate of a 2D-only object is placed by the dense alignment or not at all:
-    // its corners are the whole report, and a few synthesised features fit them several px off
-    // (a 3D object's feature pose has the pose-gap check and the RMS bound instead).
-    const bool dense_placed = placeTwoD(ctx, cand, dense, &d);
-    const VerifyOptions& vo = ctx.opt.verify;
-    if (vo.enabled && vo.second_pass_needs_dense && ctx.second_pass && !dense_placed && ctx.opt.dense.enabled &&
-        ctx.object.dense_usable && !ctx.scene.image.empty())
-      return CheckOutcome::kNotVerified;
+    // A 2D-only object's corners are its whole report, and a few synthesised features fit them
+    // several px off (a 3D object's feature pose has the pose-gap check and the RMS bound instead).
+    if (secondPassUnplaced(ctx, placeTwoD(ctx, cand, dense, &d))) return CheckOutcome::kNotVerified;
   }
   d.sanity = checkDetection(d.corners, d.cMo, ctx.camera.width, ctx.camera.height, ctx.opt.sanity);
   if (d.sanity != SanityStatus::kOk) return CheckOutcome::kSanity;
