@@ -3,12 +3,15 @@
 // camera effects at stratified distances and tilts. Prints one markdown table per set by
 // distance, tilt and target size (found, pose ok, false positives, median errors, time), the
 // bins where refgrasp finds less than the classic pipeline, and false positives on photo clutter.
+#include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <optional>
+#include <random>
 #include <string>
 
 #include "bench_util.h"
@@ -36,9 +39,101 @@ void usage() {
       "       [--detector-config FILE (options YAML; the flags after it override it)]\n"
       "       [--min-distance-bin N (only frames of distance bins >= N)]\n"
       "       [--dump DIR (write the references and 12 frames per set, no evaluation)]\n"
+      "       [--pose-bounds (what one frame allows, no detection: the pose from the true corners\n"
+      "       with noise, the dense alignment started at the true pose and at its mirror)]\n"
       "       [--classic-fast (the classic pipeline reuses the fast SIFT\n"
       "       features: same results, no classic timing, no classic on the clutter)] [--wall]\n"
       "       [--csv FILE] [--help]\n");
+}
+
+
+bool poseOk(const Pose& p, const Pose& truth) {
+  return rotationError(p, truth) < 2 * M_PI / 180 && translationError(p, truth) < 0.02 * truth.t.norm();
+}
+
+// The two poses IPPE finds for the frame's four true texture corners (cMo, object frame on the
+// texture plane, metres, radians): the truth and, when the view is not degenerate, its mirror.
+std::vector<Pose> ippeSolutions(const eval::SetFrame& f, const std::array<Eigen::Vector2d, 4>& corners_px,
+                                const std::vector<cv::Point3d>& plane_pts) {
+  const Eigen::Matrix3d K = f.camera.K();
+  cv::Mat Kcv(3, 3, CV_64F);
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) Kcv.at<double>(r, c) = K(r, c);
+  std::vector<cv::Point2d> img;
+  for (const auto& c : corners_px) img.emplace_back(c.x(), c.y());
+  std::vector<cv::Mat> rv, tv;
+  cv::solvePnPGeneric(plane_pts, img, Kcv, cv::noArray(), rv, tv, false, cv::SOLVEPNP_IPPE);
+  std::vector<Pose> out;
+  for (size_t k = 0; k < rv.size() && k < tv.size(); ++k)
+    out.push_back(Pose::fromRotationVector(Eigen::Vector3d(rv[k].at<double>(0), rv[k].at<double>(1), rv[k].at<double>(2)),
+                                           Eigen::Vector3d(tv[k].at<double>(0), tv[k].at<double>(1), tv[k].at<double>(2))));
+  return out;
+}
+
+// --pose-bounds: what one frame allows on the frames of distance bins >= min_bin, without
+// detection. (1) The pose (IPPE's better solution) from the four true corners with Gaussian
+// noise of sigma px on each coordinate, 200 draws: the pose-ok count expected from a detector
+// whose corners are that precise. (2) The dense alignment (Detector::alignPose) started at the
+// true pose: the most the refined pose can give a perfect detection. (3) Started at
+// IPPE's other solution of the true corners (the mirror): how often it stays there (> 10 deg
+// off) and how often the truth's start correlates higher, i.e. whether the correlation could
+// choose between the two.
+void poseBounds(const eval::RealisticSet& set, int min_bin, const detector::DetectorOptions& base) {
+  const auto& spec = set.spec();
+  const std::vector<double> sigmas = {0.1, 0.2, 0.3, 0.5};
+  std::vector<double> expected(sigmas.size(), 0);
+  int frames = 0, aligned = 0, ok = 0, mirrors = 0, stays = 0, truth_higher = 0;
+  std::mt19937 rng(1);
+  std::normal_distribution<double> noise(0, 1);
+  const int bins = static_cast<int>(spec.distance_edges_m.size()) - 1;
+  for (int i = 0; i < set.frames(); ++i) {
+    if (i % bins < min_bin) continue;  // frames cycle through the distance bins
+    const eval::SetFrame f = set.frame(i);
+    ++frames;
+    std::fprintf(stderr, "\r%s %d/%d", spec.name.c_str(), i + 1, set.frames());
+    // The corners in the object frame: the true pixels back-projected onto the texture plane.
+    const Eigen::Matrix3d Ki = f.camera.K().inverse();
+    const Eigen::Vector3d n = f.cMo.R.col(2);
+    std::vector<cv::Point3d> plane;
+    for (const auto& c : f.corners) {
+      const Eigen::Vector3d ray = Ki * c.homogeneous();
+      const Eigen::Vector3d Xo = f.cMo.R.transpose() * (n.dot(f.cMo.t) / n.dot(ray) * ray - f.cMo.t);
+      plane.emplace_back(Xo.x(), Xo.y(), 0.0);
+    }
+    for (size_t s = 0; s < sigmas.size(); ++s) {
+      int good = 0;
+      for (int d = 0; d < 200; ++d) {
+        std::array<Eigen::Vector2d, 4> noisy = f.corners;
+        for (auto& c : noisy) c += sigmas[s] * Eigen::Vector2d(noise(rng), noise(rng));
+        const std::vector<Pose> sol = ippeSolutions(f, noisy, plane);
+        good += !sol.empty() && poseOk(sol.front(), f.cMo);
+      }
+      expected[s] += good / 200.0;
+    }
+    const detector::ObjectModel& model = set.objects()[static_cast<size_t>(f.object)].model;
+    detector::Detector det(base);
+    det.addObject(model);
+    const detector::PoseAlignment from_truth = det.alignPose(f.image, f.camera, 0, f.cMo);
+    aligned += from_truth.ok;
+    ok += from_truth.ok && poseOk(from_truth.cMo, f.cMo);
+    std::optional<Pose> mirror;
+    for (const Pose& p : ippeSolutions(f, f.corners, plane))
+      if (rotationError(p, f.cMo) > 0.5 * M_PI / 180) mirror = p;
+    if (!mirror || !from_truth.ok) continue;
+    const detector::PoseAlignment m = det.alignPose(f.image, f.camera, 0, *mirror);
+    if (!m.ok) continue;
+    ++mirrors;
+    stays += rotationError(m.cMo, f.cMo) > 10 * M_PI / 180;
+    truth_higher += from_truth.correlation > m.correlation;
+  }
+  std::fprintf(stderr, "\n");
+  std::printf("Set %s, %d frames of distance bins >= %d (%.1f m and more):\n", spec.name.c_str(), frames, min_bin,
+              spec.distance_edges_m[static_cast<size_t>(std::min<int>(min_bin, static_cast<int>(spec.distance_edges_m.size()) - 1))]);
+  std::printf("  pose ok expected from the true corners with noise:");
+  for (size_t s = 0; s < sigmas.size(); ++s) std::printf(" sigma %.1f px %.1f%s", sigmas[s], expected[s], s + 1 < sigmas.size() ? "," : "\n");
+  std::printf("  dense alignment from the true pose: aligned %d, pose ok %d\n", aligned, ok);
+  std::printf("  from the mirror pose (%d aligned from both): stays mirrored %d, the truth's start correlates higher %d\n",
+              mirrors, stays, truth_higher);
 }
 
 }  // namespace
@@ -47,7 +142,7 @@ int main(int argc, char** argv) try {
   int frames = 160, clutter = 100, min_bin = 0;
   uint64_t seed = 1001;
   std::string only, csv, dump;
-  bool diagnose = false;
+  bool diagnose = false, bounds = false;
   eval::EvalOptions opt;
   opt.time_sift = true;
   for (int i = 1; i < argc; ++i) {
@@ -97,6 +192,8 @@ int main(int argc, char** argv) try {
       }
     } else if (a == "--min-distance-bin" && i + 1 < argc) {
       min_bin = static_cast<int>(bench::intArg("bench_realistic", "--min-distance-bin", argv[++i], 0));
+    } else if (a == "--pose-bounds") {
+      bounds = true;
     } else if (a == "--diagnose") {
       diagnose = true;
     } else if (a == "--dump" && i + 1 < argc) {
@@ -104,7 +201,7 @@ int main(int argc, char** argv) try {
     } else if (a == "--csv" && i + 1 < argc) {
       csv = argv[++i];
     } else {
-      bench::rejectArgument("bench_realistic", a, {"--frames", "--clutter", "--seed", "--set", "--pose", "--min-inliers", "--max-log10-nfa", "--min-correlation", "--detector-config", "--min-distance-bin", "--dump", "--csv"});
+      bench::rejectArgument("bench_realistic", a, {"--frames", "--clutter", "--seed", "--set", "--pose", "--min-inliers", "--max-log10-nfa", "--min-correlation", "--detector-config", "--min-distance-bin", "--dump", "--csv", "--pose-bounds"});
     }
   }
   const std::vector<eval::RealisticSetSpec> specs = eval::realisticSets(seed, frames);
@@ -146,6 +243,10 @@ int main(int argc, char** argv) try {
       for (size_t k = 0; k < set.objects().size(); ++k)
         write(spec.name + "_ref_" + std::to_string(k) + ".png", set.objects()[k].photo.image);
       for (int i = 0; i < std::min(frames, 12); ++i) write(spec.name + "_frame_" + std::to_string(i) + ".png", set.frame(i).image);
+      continue;
+    }
+    if (bounds) {
+      poseBounds(set, min_bin, opt.detector);
       continue;
     }
     if (diagnose) {  // the upper bound: true correspondences present in the frames
@@ -208,6 +309,7 @@ int main(int argc, char** argv) try {
              << r.refgrasp.ms << ',' << r.classic.ms << ',' << r.sift_ms << ',' << r.refgrasp.log10_nfa << ','
              << r.refgrasp.correlation << '\n';
   }
+  if (bounds) return 0;
   if (rows.is_open() && !rows.flush()) {
     std::fprintf(stderr, "bench_realistic: %s: cannot write\n", csv.c_str());
     return 1;
