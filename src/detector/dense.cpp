@@ -160,7 +160,8 @@ DenseRefineResult refineOnce(const std::vector<cv::Mat>& ref_pyramid, const cv::
     minx = std::min(minx, c.x()), maxx = std::max(maxx, c.x());
     miny = std::min(miny, c.y()), maxy = std::max(maxy, c.y());
   }
-  // Level: the finest one not finer than the scene (area ratio), coarser until the template fits.
+  // Level: the coarsest one at least as fine as the pattern in the scene (area ratio: up to twice
+  // finer, linearly), coarser until the template fits.
   const int levels = static_cast<int>(ref_pyramid.size());
   int L = std::max(0, static_cast<int>(std::floor(0.5 * std::log2(a_ref / a_scene))));
   L = std::min(L, levels - 1);
