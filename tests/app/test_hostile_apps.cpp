@@ -337,7 +337,8 @@ std::string copyOf(const std::string& from, const fs::path& to) {
 
 // The loopback configuration, a private domain and namespace: DDS tests run in parallel.
 std::string loopbackUri() { return "file://" + kSource + "/config/dds/cyclonedds_loopback.xml"; }
-std::string privateDomainArg() { return " --domain " + std::to_string(1 + ::getpid() % 200); }
+// A domain below the ephemeral port range, as dds_test_util.h's privateDomain().
+std::string privateDomainArg() { return " --domain " + std::to_string(1 + ::getpid() % 100); }
 std::string privateNs() { return "/hostile_" + std::to_string(::getpid()); }
 
 // The DDS tools with the arguments that start them (enon_grasp on the dds backend).

@@ -20,8 +20,11 @@ inline void useLoopbackDds() {
   ::setenv("CYCLONEDDS_URI", uri.c_str(), 1);
 }
 
-/// A DDS domain id for this process, in [1, 200].
-inline int privateDomain() { return 1 + static_cast<int>(::getpid() % 200); }
+/// A DDS domain id for this process, in [1, 100]. Cyclone's ports for domain d are 7400 + 250 d
+/// and a few dozen above: up to domain 101 they stay below Linux's ephemeral range (32768-60999),
+/// where any process's outgoing socket may hold one and the participant then fails to bind it
+/// ("address in use"). Two processes sharing a domain stay apart by namespace.
+inline int privateDomain() { return 1 + static_cast<int>(::getpid() % 100); }
 
 /// "/<base>_<pid>".
 inline std::string privateNamespace(const std::string& base) {
