@@ -128,6 +128,10 @@ detector::ObjectModel twoDOnly(const detector::ObjectModel& m) {
   return out;
 }
 
+bool poseWithinTolerance(const Pose& cMo, const Pose& truth) {
+  return rotationError(cMo, truth) < 2.0 * kDeg && translationError(cMo, truth) < 0.02 * truth.t.norm();
+}
+
 MethodOutcome scoreOutcome(const SetObject& obj, const SetFrame& f, const Eigen::Matrix3d& H,
                            const std::optional<Pose>& cMo) {
   std::array<Eigen::Vector2d, 4> corners;
@@ -137,7 +141,7 @@ MethodOutcome scoreOutcome(const SetObject& obj, const SetFrame& f, const Eigen:
     m.has_pose = true;
     m.rot_deg = rotationError(*cMo, f.cMo) / kDeg;
     m.rel_t = translationError(*cMo, f.cMo) / f.cMo.t.norm();
-    m.pose_ok = m.found && m.rot_deg < 2.0 && m.rel_t < 0.02;
+    m.pose_ok = m.found && poseWithinTolerance(*cMo, f.cMo);
   }
   return m;
 }

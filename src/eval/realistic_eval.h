@@ -119,6 +119,10 @@ detector::ObjectModel twoDOnly(const detector::ObjectModel& model);
 std::vector<FrameOutcome> evaluateSet(const RealisticSet& set, const EvalOptions& opt, int first, int last,
                                       const std::function<void(int)>& progress = {});
 
+/// The sets' "pose ok" tolerance, without the "found" part: cMo (object in camera, metres,
+/// radians) within 2 deg of the truth's rotation and 2 % of its distance.
+bool poseWithinTolerance(const Pose& cMo, const Pose& truth);
+
 /// Scores one reported result (H: reference px -> image px; cMo when the method gave a pose).
 MethodOutcome scoreOutcome(const SetObject& obj, const SetFrame& f, const Eigen::Matrix3d& H,
                            const std::optional<Pose>& cMo);
