@@ -62,6 +62,15 @@ WORLDS = [
                (3, 0.2, "../../media/photos/cookie_box.png", (0.22, 0.15, 0.07))],
          text="an 18 cm butterfly photograph box on a table 5.4 m behind the robot on its right, "
               "turned -10 deg, an aerial photograph box beside it, 5 % frame drops and latency"),
+    dict(name="room_aerial_across", photo="aerial_town", depth=0.06, start=(-1.5, 0.5, 3.14), seed=52,
+         noise=2.5, faults="none", turn=-20, on=1, offset=-0.2,
+         furniture=[("table", "W", -1.5), ("table", "E", 0.0), ("shelf", "N", -1.0), ("table", "S", 1.5)],
+         dist=[(1, 0.3, "../../media/photos/butterfly_on_leaf.jpg", (0.18, 0.13, 0.06)),
+               (2, 0.0, "../../media/photos/fruits_closeup.jpg", (0.21, 0.20, 0.08)),
+               (0, 0.0, "../../media/boxes/box_side_a.png", (0.20, 0.16, 0.16))],
+         text="a 16 cm aerial photograph box, 12 cm tall, on a table 5.7 m away across the room behind "
+              "the robot, turned -20 deg, a butterfly box beside it: the grasp from a base standing "
+              "where the arm reaches the pre-grasp pose would put the body against the table edge"),
 ]
 
 

@@ -41,6 +41,7 @@ void GraspOptions::check() const {
   const std::string o = "GraspOptions.";
   check(finiteIn(pregrasp_distance_m, 0.01, 1), o + "pregrasp_distance_m", "must be in [0.01, 1]");
   check(finiteIn(pregrasp_clearance_m, 0, 1), o + "pregrasp_clearance_m", "must be in [0, 1]");
+  check(finiteIn(fixture_clearance_m, 0, 1), o + "fixture_clearance_m", "must be in [0, 1]");
   check(finiteIn(approach_arm_tolerance_rad, 1e-4, 1), o + "approach_arm_tolerance_rad",
         "must be in (0, 1]");
   check(finiteIn(arm_ready_distance_m, 0, 10), o + "arm_ready_distance_m", "must be in [0, 10]");
@@ -118,6 +119,42 @@ GraspController::~GraspController() = default;
 
 Pose GraspController::wMb() const { return robot_.state().wMb_odom; }
 
+bool GraspController::baseMayAdvance(const Pose& wMb_now, double v_mps, std::string* blocker) const {
+  if (!(v_mps > 0)) return true;
+  const Eigen::Vector2d p = wMb_now.t.head<2>();
+  const Eigen::Vector2d ahead = p + v_mps * robot_.model().control_period_s * wMb_now.R.col(0).head<2>().normalized();
+  const double r = robot_.model().base.body_radius_m + opt_.fixture_clearance_m;
+  for (const RoomFixture& f : opt_.room.fixtures) {
+    const double d_ahead = f.footprint.distance(ahead);
+    // Only motion that brings the body closer is held: a base already too near may back off.
+    if (d_ahead < r && d_ahead < f.footprint.distance(p)) {
+      if (blocker) *blocker = f.name;
+      return false;
+    }
+  }
+  return true;
+}
+
+bool GraspController::armBaseMayAdvance(const Pose& wMb_now, GraspIteration* it) {
+  BaseCommand probe;
+  probe.v_mps = opt_.arm.max_base_v_mps;  // the fastest the arm task drives the base
+  guardBase(wMb_now, &probe, it);
+  return probe.v_mps > 0;
+}
+
+void GraspController::guardBase(const Pose& wMb_now, BaseCommand* b, GraspIteration* it) {
+  std::string blocker;
+  if (baseMayAdvance(wMb_now, b->v_mps, &blocker)) return;
+  b->v_mps = 0;
+  if (blocker != guard_note_) {
+    guard_note_ = blocker;
+    char note[160];
+    std::snprintf(note, sizeof note, "base held: its body would come within %.3f m of %s", opt_.fixture_clearance_m,
+                  blocker.c_str());
+    it->event = note;
+  }
+}
+
 std::string GraspController::why() const {
   const std::string e = robot_.hardware().lastError();
   return e.empty() ? "" : ": " + e;
@@ -153,6 +190,7 @@ void GraspController::enter(GraspPhase p, Seconds t, const std::string& outcome,
   r.outcome = outcome;
   const GraspPhase phase_before = phase_;
   phase_ = p;
+  guard_note_.clear();  // each phase notes where its base was held
   phase_start_ = t;
   detail_.clear();
   lost_since_.reset();
@@ -388,9 +426,10 @@ void GraspController::decideApproach(Seconds t, GraspIteration* it) {
   } else if (!goal_ && (closer_ || (wMo_->t - wMb_now.t).head<2>().norm() > opt_.reestimate_range_m)) {
     // Too far to judge: closer, the target's centre ahead at reestimate_stop_m, arm still.
     const Eigen::Vector3d bP = wMb_now.inverse() * (*wMo_ * centre_o_);
-    const BaseCommand b = base_task_.compute(bP, bP, opt_.reestimate_stop_m);
+    BaseCommand b = base_task_.compute(bP, bP, opt_.reestimate_stop_m);
     closer_ = std::abs(b.depth_error_m) > opt_.base.waypoint_tolerance_m;
     if (closer_) {
+      guardBase(wMb_now, &b, it);
       unreachable_since_.reset();
       robot_.arm().setJointVelocity(Eigen::VectorXd::Zero(robot_.model().arm.dof()));
       robot_.base().setVelocity(b.v_mps, b.w_radps);
@@ -431,6 +470,7 @@ void GraspController::decideApproach(Seconds t, GraspIteration* it) {
     b.v_mps = 0;
     detail_ = "arm_ready";
   }
+  guardBase(wMb_now, &b, it);
   robot_.base().setVelocity(b.v_mps, b.w_radps);
   pointHead(wMb_now, b.v_mps, b.w_radps);
   it->error_position_m = b.points.position_error_m;
@@ -450,7 +490,7 @@ void GraspController::decideAlign(Seconds t, GraspIteration* it) {
   const Pose wMb_now = wMb();
   const Pose wMg = *wMo_ * oMg_;
   const Pose bMed = wMb_now.inverse() * wMg * along(-pregrasp_m_);
-  const ArmCommand c = arm_task_.compute(robot_.state().arm_q_rad, bMed);
+  const ArmCommand c = arm_task_.compute(robot_.state().arm_q_rad, bMed, armBaseMayAdvance(wMb_now, it));
   robot_.arm().setJointVelocity(c.qdot_radps);
   robot_.base().setVelocity(c.base_v_mps, c.base_w_radps);
   pointHead(wMb_now, c.base_v_mps, c.base_w_radps);
@@ -481,7 +521,7 @@ void GraspController::decideGrasp(Seconds t, GraspIteration* it) {
     // e* slides from the pre-grasp pose to g along z_g: a straight line at grasp_speed_mps.
     const double d = std::max(0.0, pregrasp_m_ - opt_.grasp_speed_mps * (t - step_started_));
     const Pose bMed = wMb_now.inverse() * wMg * along(-d);
-    const ArmCommand c = arm_task_.compute(s.arm_q_rad, bMed);
+    const ArmCommand c = arm_task_.compute(s.arm_q_rad, bMed, armBaseMayAdvance(wMb_now, it));
     robot_.arm().setJointVelocity(c.qdot_radps);
     robot_.base().setVelocity(c.base_v_mps, c.base_w_radps);
     pointHead(wMb_now, c.base_v_mps, c.base_w_radps);

@@ -28,6 +28,9 @@
 //     frame the estimator cannot use (wrong size, no ground truth for the oracle), an exception
 //     from anything (the estimator included): the robot is stopped, step() returns kError with
 //     one line, and every later step() only stops the robot again.
+// and no forward base motion in the approach, the align and the final approach that would bring
+// the base's body within fixture_clearance_m of a fixture of the room map (the arm then reaches
+// alone).
 //
 // Frames: w is the ODOMETRY frame (wMb_odom); the target is kept as wMo = wMb_odom(capture) *
 // bMc(capture) * cMo, i.e. compensated for the camera and base motion between the exposure and
@@ -67,6 +70,13 @@ struct GraspOptions {
   /// the fingers start clear of its face whatever its size).
   double pregrasp_distance_m = 0.12;
   double pregrasp_clearance_m = 0.05;
+  /// The base does not drive forward when its body (the model's vertical cylinder about z_b)
+  /// would come within this of a fixture of `room` (m) in the next control period at the phase's
+  /// speed; turning never brings it closer. The arm then serves the task alone. Without a room
+  /// map there is no guard. 2 cm: above the odometry's drift over an approach (a few mm in the
+  /// simulator, docs/results.md), below the 6 cm the body clears a table by in a grasp of the
+  /// reach the model was checked for (config/enon.yaml), so that grasp never meets the guard.
+  double fixture_clearance_m = 0.02;
   double approach_arm_tolerance_rad = 0.05;    ///< arm joints at the reaching configuration
   double arm_ready_speed_fraction = 0.6;  ///< of each joint's limit, moving to that configuration
   /// The base comes no closer than this to its approach goal (m) until the arm is within
@@ -214,6 +224,15 @@ class GraspController {
   void pointHead(const Pose& wMb, double base_v_mps, double base_w_radps);
   void stopMotion();
   Pose wMb() const;
+  /// Whether the base may drive forward at v_mps for one control period from wMb_now without
+  /// its body coming within fixture_clearance_m of a fixture of the room; when not, `blocker`
+  /// names that fixture.
+  bool baseMayAdvance(const Pose& wMb_now, double v_mps, std::string* blocker = nullptr) const;
+  /// Zeroes b's forward speed when the base may not advance; notes the fixture in the log once.
+  void guardBase(const Pose& wMb_now, BaseCommand* b, GraspIteration* it);
+  /// The same guard for the arm task's base motion, at the speed it may command.
+  bool armBaseMayAdvance(const Pose& wMb_now, GraspIteration* it);
+  std::string guard_note_;  ///< the fixture the guard last stopped the base at ("" none)
   /// ": <the hardware's one-line reason>" for the last read/write error, or "".
   std::string why() const;
 

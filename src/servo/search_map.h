@@ -27,6 +27,8 @@ struct Footprint {
   double yaw_rad = 0;
   /// True when (x, y) is inside the footprint grown by `margin_m` on every side.
   bool contains(const Eigen::Vector2d& p, double margin_m = 0) const;
+  /// Distance (m) from (x, y) to the footprint; 0 inside it.
+  double distance(const Eigen::Vector2d& p) const;
 };
 
 struct RoomFixture {

@@ -366,7 +366,7 @@ ArmAlignTask::ArmAlignTask(const robot::ArmModel& arm, const ArmAlignOptions& o)
 
 ArmAlignTask::~ArmAlignTask() = default;
 
-ArmCommand ArmAlignTask::compute(const Eigen::VectorXd& q, const Pose& bMed) {
+ArmCommand ArmAlignTask::compute(const Eigen::VectorXd& q, const Pose& bMed, bool base_may_advance) {
   Impl& m = *impl_;
   const int dof = kin_.dof();
   ArmCommand out;
@@ -380,6 +380,9 @@ ArmCommand ArmAlignTask::compute(const Eigen::VectorXd& q, const Pose& bMed) {
     J.conservativeResize(6, dof);
   } else {
     J.rightCols(2) *= opt_.base_weight;
+    // Held at a fixture: the forward column out (a task that wants the base forward leaves the
+    // rest to the arm); the command's forward speed is clamped below as well.
+    if (!base_may_advance) J.col(dof).setZero();
   }
   const vpHomogeneousMatrix cdMc = toVisp(edMe);
   m.t.buildFrom(cdMc);
@@ -417,7 +420,7 @@ ArmCommand ArmAlignTask::compute(const Eigen::VectorXd& q, const Pose& bMed) {
   x *= scale;
   out.qdot_radps = x.head(dof);
   if (m.base) {
-    out.base_v_mps = x[dof] * opt_.base_weight;
+    out.base_v_mps = base_may_advance ? x[dof] * opt_.base_weight : std::min(0.0, x[dof] * opt_.base_weight);
     out.base_w_radps = x[dof + 1] * opt_.base_weight;
   }
   return out;

@@ -205,8 +205,9 @@ class ArmAlignTask {
   ArmAlignTask& operator=(const ArmAlignTask&) = delete;
 
   /// \param q arm joints now; \param bMed desired gripper pose e* in the base frame now (static
-  /// in the world).
-  ArmCommand compute(const Eigen::VectorXd& q, const Pose& bMed);
+  /// in the world); \param base_may_advance false: the base does not drive forward (its body is
+  /// at a fixture), the arm and the base's turn and reverse serve the task.
+  ArmCommand compute(const Eigen::VectorXd& q, const Pose& bMed, bool base_may_advance = true);
   const ArmAlignOptions& options() const { return opt_; }
   const robot::ArmKinematics& kinematics() const { return kin_; }
 

@@ -85,6 +85,41 @@ TEST(GraspController, OracleGraspsTheTargetOnTableSingle) {
   EXPECT_LT(r.sim_time_s, 30);
 }
 
+// room_aerial_across: a 12 cm tall box 12 cm behind a table's edge, turned 20 deg. From the base
+// pose whose arm reaches the pre-grasp pose, the task's base share of the last 12 cm would put the
+// body against the table (before the guard: a collision with table_1 on every seed, oracle and
+// vision). The base stops with its body fixture_clearance_m from the table, the arm reaches the
+// rest, and the box is grasped; the log says where the base was held.
+TEST(GraspController, TheBaseStopsAtATableAndTheArmReachesTheRest) {
+  const Target target = loadTarget(scenarioPath("room_aerial_across"));
+  servo::OracleEstimator oracle(target.object);
+  const robot::EnonModel model = robot::loadEnonModel(refgrasp::testing::kSourceDir + "/config/enon.yaml");
+  const servo::GraspOptions options;
+  const servo::Footprint* table = nullptr;
+  const servo::GraspOptions with_room = grasp_app::withRoom(options, target.scenario, target.extent_o);
+  for (const servo::RoomFixture& f : with_room.room.fixtures)
+    if (f.name == "table_1") table = &f.footprint;
+  ASSERT_NE(table, nullptr);
+  double nearest = 1e9;
+  std::string held;
+  const GraspRun r = runGrasp(target, oracle, options, 90, /*render=*/false,
+                              [&](const servo::GraspStep& s, const sim::SimEnon& sim) {
+                                nearest = std::min(nearest, table->distance(sim.wMb().t.head<2>()));
+                                if (s.it.event.rfind("base held", 0) == 0) held = s.it.event;
+                                return true;
+                              });
+  EXPECT_TRUE(r.report.success) << r.report.failure << " " << r.error;
+  EXPECT_TRUE(r.holding_target);
+  EXPECT_TRUE(r.collisions.empty()) << r.collisions.front().message();
+  EXPECT_TRUE(r.violations.empty()) << r.violations.front();
+  EXPECT_EQ(held, "base held: its body would come within 0.020 m of table_1");
+  const double clearance = nearest - model.base.body_radius_m;
+  std::printf("body's nearest approach to table_1: %.4f m\n", clearance);
+  EXPECT_GT(clearance, options.fixture_clearance_m - 0.005);  // odometry drift: a few mm
+  EXPECT_LT(clearance, options.fixture_clearance_m + 0.02);   // the guard, not the plan, held it
+  EXPECT_EQ(r.report.phases.at("grasp").outcome, "holding");
+}
+
 // The target vanishes mid-approach: the robot is stopped in the very period the estimator says
 // so (zero base, arm and head commands, and the simulated base stops), it holds still while
 // the target stays lost, and after reacquire_timeout_s it searches again, finds the target and

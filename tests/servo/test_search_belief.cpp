@@ -262,6 +262,23 @@ TEST(SearchBelief, AnUnknownRoomSpreadsThePriorOverARingAroundTheStart) {
   EXPECT_NEAR((b.viewpoints()[0] - Eigen::Vector2d(0.8, 0)).norm(), 0, 1e-12);
 }
 
+// A footprint's distance (the grasp's fixture guard uses it): 0 inside, to the nearest edge
+// or corner outside, in the footprint's own axes when it is turned.
+TEST(SearchMap, AFootprintsDistanceIsToItsNearestEdgeOrCorner) {
+  servo::Footprint f;
+  f.centre = Eigen::Vector2d(1, 2);
+  f.half_m = Eigen::Vector2d(0.35, 0.6);
+  EXPECT_EQ(f.distance(Eigen::Vector2d(1.1, 2.3)), 0.0);
+  EXPECT_NEAR(f.distance(Eigen::Vector2d(0.4, 2.0)), 0.25, 1e-12);       // in front of the x edge
+  EXPECT_NEAR(f.distance(Eigen::Vector2d(1.0, 2.9)), 0.3, 1e-12);        // beyond the y edge
+  EXPECT_NEAR(f.distance(Eigen::Vector2d(1.65, 2.0 - 1.0)), 0.5, 1e-12);  // off a corner: 0.3, 0.4
+  f.yaw_rad = M_PI / 2;  // turned: its x along the world's y
+  EXPECT_NEAR(f.distance(Eigen::Vector2d(1.0, 2.0 - 0.55)), 0.2, 1e-12);
+  EXPECT_NEAR(f.distance(Eigen::Vector2d(1.0 + 0.9, 2.0)), 0.3, 1e-12);
+  EXPECT_TRUE(f.contains(Eigen::Vector2d(1.0 + 0.9, 2.0), 0.31));
+  EXPECT_FALSE(f.contains(Eigen::Vector2d(1.0 + 0.9, 2.0), 0.29));
+}
+
 TEST(SearchBelief, BadOptionsNameTheField) {
   const robot::EnonModel m = enon();
   BeliefSearchOptions o;

@@ -223,6 +223,42 @@ TEST(ServoTasks, ArmAlignConvergesFromSeededStartsWithTheBaseContributing) {
   }
 }
 
+// The base held at a fixture (base_may_advance false): the final approach of a grasp, the
+// gripper 10 cm behind a reachable pre-grasp pose along its axis, with the base standing still
+// in x: the task never drives the base forward and the arm alone brings the gripper there.
+TEST(ServoTasks, ArmAlignWithTheBaseHeldReachesWithTheArmAlone) {
+  const robot::EnonModel m = enon();
+  const robot::ArmKinematics arm(m.arm);
+  servo::ArmAlignTask task(m.arm);
+  const double dt = m.control_period_s;
+  for (const double h : {0.78, 0.84, 0.90}) {
+    const servo::ArmReach reach = servo::reachInShoulderPlane(arm, facingForward(), h);
+    ASSERT_TRUE(reach.ok);
+    const Pose wMed = reach.bMe * Pose(Eigen::Matrix3d::Identity(), Eigen::Vector3d(0, 0, 0.10));  // 10 cm on along z_e
+    Eigen::VectorXd q = reach.q;
+    robot::PlanarPose b{0, 0, 0};
+    double max_v = 0, time = 0;
+    servo::ArmCommand c;
+    for (; time < 6; time += dt) {
+      c = task.compute(q, b.toPose().inverse() * wMed, /*base_may_advance=*/false);
+      if (c.position_error_m() < 0.001 && c.rotation_error_rad() < 0.2 * M_PI / 180) break;
+      max_v = std::max(max_v, c.base_v_mps);
+      const Eigen::VectorXd qdot = robot::limitJointVelocity(m.arm, q, c.qdot_radps, dt);
+      for (int i = 0; i < arm.dof(); ++i)
+        q[i] = robot::integrateJoint(m.arm.joints[static_cast<size_t>(i)].limits, q[i], qdot[i], dt);
+      b = robot::integrateUnicycle(b, c.base_v_mps, c.base_w_radps, dt);
+    }
+    EXPECT_LE(max_v, 0.0) << h;
+    EXPECT_LE(b.x_m, 1e-9) << h;
+    const Pose wMe = b.toPose() * arm.forward(q);
+    EXPECT_LT(translationError(wMe, wMed), 0.001) << h;
+    EXPECT_LT(deg(rotationError(wMe, wMed)), 0.2) << h;
+    // With the base free the same task drives it forward (what the hold takes away).
+    servo::ArmAlignTask free_task(m.arm);
+    EXPECT_GT(free_task.compute(reach.q, wMed).base_v_mps, 0.01) << h;
+  }
+}
+
 
 // The joint-limit avoidance (vpServo::secondaryTaskJointLimitAvoidance) at work: from harsher
 // starts (the base up to 8 cm and 6 deg off its goal, which the arm must make up, often by
