@@ -71,6 +71,23 @@ WORLDS = [
          text="a 16 cm aerial photograph box, 12 cm tall, on a table 5.7 m away across the room behind "
               "the robot, turned -20 deg, a butterfly box beside it: the grasp from a base standing "
               "where the arm reaches the pre-grasp pose would put the body against the table edge"),
+    dict(name="room_hotel_corner", photo="hotel_facade", depth=0.07, start=(-1.0, 1.0, 0.0), seed=62,
+         noise=2.5, faults="drops", turn=-25, on=1, offset=0.4,
+         furniture=[("table", "N", -2.0), ("table", "S", -3.5), ("shelf", "E", 3.0), ("table", "W", 0.0)],
+         dist=[(0, 0.0, "../../media/photos/fruits_closeup.jpg", (0.21, 0.20, 0.08)),
+               (3, 0.2, "../../media/photos/aerial_town.jpg", (0.16, 0.12, 0.06))],
+         text="a 20 cm hotel-facade photograph box on a table near the room's south-west corner, "
+              "5.9 m away behind the robot on its right, turned -25 deg; 5 % frame drops, latency and "
+              "odometry noise: the base's approach goal puts its body within 2 cm of the table"),
+    dict(name="room_aerial_shelf", photo="aerial_town", depth=0.06, start=(1.0, -1.0, -1.57), seed=61,
+         noise=2.0, faults="none", turn=25, on=0, offset=0.3,
+         furniture=[("shelf", "N", 1.5), ("table", "W", -2.0), ("table", "E", 1.5), ("table", "S", -1.5)],
+         dist=[(1, 0.0, "../../media/photos/cookie_box.png", (0.22, 0.15, 0.07)),
+               (0, -0.25, "../../media/photos/butterfly_on_leaf.jpg", (0.18, 0.13, 0.06)),
+               (3, 0.0, "../../media/boxes/box_side_a.png", (0.20, 0.16, 0.16))],
+         text="a 16 cm aerial photograph box on a 0.85 m shelf 5.5 m behind the robot, turned 25 deg, "
+              "a butterfly box beside it: found from the side, the way to the approach's waypoint "
+              "decides whether the head keeps it in view"),
 ]
 
 

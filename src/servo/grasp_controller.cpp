@@ -135,6 +135,20 @@ bool GraspController::baseMayAdvance(const Pose& wMb_now, double v_mps, std::str
   return true;
 }
 
+Pose GraspController::clearOfFixtures(const Pose& wMb_goal) const {
+  Pose out = wMb_goal;
+  const Eigen::Vector2d back = -wMb_goal.R.col(0).head<2>().normalized();
+  const double r = robot_.model().base.body_radius_m + opt_.fixture_clearance_m;
+  for (int pass = 0; pass < 4; ++pass) {  // a goal between two fixtures settles in a few
+    double deficit = 0;
+    for (const RoomFixture& f : opt_.room.fixtures)
+      deficit = std::max(deficit, r - f.footprint.distance(out.t.head<2>()));
+    if (!(deficit > 0)) break;
+    out.t.head<2>() += (deficit + 1e-3) * back;
+  }
+  return out;
+}
+
 bool GraspController::armBaseMayAdvance(const Pose& wMb_now, GraspIteration* it) {
   BaseCommand probe;
   probe.v_mps = opt_.arm.max_base_v_mps;  // the fastest the arm task drives the base
@@ -419,6 +433,7 @@ void GraspController::decideApproach(Seconds t, GraspIteration* it) {
   const Pose wMg = *wMo_ * oMg_;
   const Pose wMed = wMg * along(-pregrasp_m_);
   BaseGoal g = baseGoalFor(arm_task_.kinematics(), wMed, goal_ ? goal_->reach.q : Eigen::VectorXd());
+  g.wMb = clearOfFixtures(g.wMb);
   const Pose wMb_now = wMb();
   if (g.reach.ok) {
     unreachable_since_.reset();
@@ -450,7 +465,7 @@ void GraspController::decideApproach(Seconds t, GraspIteration* it) {
       return;
     }
   }
-  BaseCommand b = base_task_.approach(wMb_now, goal_->wMb);
+  BaseCommand b = base_task_.approach(wMb_now, goal_->wMb, Eigen::Vector3d(*wMo_ * centre_o_));
   detail_ = toString(b.stage);
   // The arm goes to its reaching configuration meanwhile (joint space, capped speed).
   const robot::RobotState& s = robot_.state();
@@ -521,7 +536,7 @@ void GraspController::decideGrasp(Seconds t, GraspIteration* it) {
     // e* slides from the pre-grasp pose to g along z_g: a straight line at grasp_speed_mps.
     const double d = std::max(0.0, pregrasp_m_ - opt_.grasp_speed_mps * (t - step_started_));
     const Pose bMed = wMb_now.inverse() * wMg * along(-d);
-    const ArmCommand c = arm_task_.compute(s.arm_q_rad, bMed, armBaseMayAdvance(wMb_now, it));
+    const ArmCommand c = arm_task_.compute(s.arm_q_rad, bMed, opt_.final_approach_base && armBaseMayAdvance(wMb_now, it));
     robot_.arm().setJointVelocity(c.qdot_radps);
     robot_.base().setVelocity(c.base_v_mps, c.base_w_radps);
     pointHead(wMb_now, c.base_v_mps, c.base_w_radps);

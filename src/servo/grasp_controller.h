@@ -14,7 +14,8 @@
 //   align     PBVS of the gripper to the pre-grasp pose e* = g Trans(0, 0, -pregraspDistance())
 //             (arm joints + base; all six components)     converged | lost | timeout
 //   grasp     straight-line final approach along z_e (the PBVS following e* sliding to g at
-//             grasp_speed_mps), close, check holding, lift, check still holding
+//             grasp_speed_mps; the base does not drive forward), close, check holding, lift,
+//             check still holding
 //                                                          holding | missed | dropped | lost | timeout
 // A phase ends the run on any outcome but its success one (converged / found / holding), except
 // "lost" (the target stayed unconfirmed for reacquire_timeout_s), which returns to the search.
@@ -87,6 +88,12 @@ struct GraspOptions {
   double align_position_tolerance_m = 0.003;
   double align_rotation_tolerance_rad = 0.015;
   double grasp_speed_mps = 0.1;           ///< final approach along z_e
+  /// The final approach's base: false, it does not drive forward (it may turn and back off) and
+  /// the arm slides the gripper onto the grasp frame; true, the base takes its share as in the
+  /// align. The last 12 cm go over the table, whose edge the robot knows only through its
+  /// odometry-relative map: a base share of them put the body against the edge of a low grasp
+  /// frame near it, the map's guard (fixture_clearance_m) off by the odometry's drift.
+  bool final_approach_base = false;
   double grasp_position_tolerance_m = 0.003;
   double grasp_rotation_tolerance_rad = 0.015;
   double lift_m = 0.05;
@@ -230,6 +237,10 @@ class GraspController {
   bool baseMayAdvance(const Pose& wMb_now, double v_mps, std::string* blocker = nullptr) const;
   /// Zeroes b's forward speed when the base may not advance; notes the fixture in the log once.
   void guardBase(const Pose& wMb_now, BaseCommand* b, GraspIteration* it);
+  /// An approach goal moved back along its heading until the body clears every fixture of the
+  /// room by fixture_clearance_m (the arm reaches the difference), so the guard never holds the
+  /// base short of it.
+  Pose clearOfFixtures(const Pose& wMb_goal) const;
   /// The same guard for the arm task's base motion, at the speed it may command.
   bool armBaseMayAdvance(const Pose& wMb_now, GraspIteration* it);
   std::string guard_note_;  ///< the fixture the guard last stopped the base at ("" none)

@@ -253,7 +253,8 @@ const char* toString(ApproachStage s) {
   return "?";
 }
 
-BaseCommand BaseApproachTask::approach(const Pose& wMb, const Pose& wMG) {
+BaseCommand BaseApproachTask::approach(const Pose& wMb, const Pose& wMG,
+                                       const std::optional<Eigen::Vector3d>& wObject) {
   const ApproachPoints a = approachPoints(wMb, wMG, opt_.lookahead_m, opt_.waypoint_m);
   if (!stage_) {
     const bool near_line = std::abs(a.lateral_m) <= opt_.line_tolerance_m &&
@@ -267,10 +268,26 @@ BaseCommand BaseApproachTask::approach(const Pose& wMb, const Pose& wMG) {
       case ApproachStage::kToWaypoint:
         if (a.bWaypoint.norm() >= opt_.waypoint_tolerance_m) {
           // Pioneer's servo on W itself: its image x, and log(Z / Z*) with Z* half the tolerance.
-          // W behind the base: the same servo in a virtual camera looking backwards (the point
-          // mirrored, the speed negated): the base backs up to it instead of turning its back
-          // on the object.
-          const bool behind = a.bWaypoint.x() < 0;
+          // Backing up to W: the same servo in a virtual camera looking backwards (the point
+          // mirrored, the speed negated). The way is the one that keeps the object (or Q, on the
+          // line beyond G) nearer the base's heading at both ends of the drive, where its bearing
+          // is largest (on the straight drive it moves monotonically between them, and the turn
+          // at W onto the line brings it ahead): the head, within its pan limits, keeps it in
+          // view. W behind the base and the object ahead: it backs up instead of turning its
+          // back on the object. Chosen once per drive to W (a tie would flip).
+          if (!backwards_to_waypoint_) {
+            const Eigen::Vector3d bObject = wObject ? Eigen::Vector3d(wMb.inverse() * *wObject) : a.bDepth;
+            const Eigen::Vector2d o = bObject.head<2>(), w = a.bWaypoint.head<2>();
+            const double h = std::atan2(w.y(), w.x());  // heading facing W, base frame
+            auto worst = [&](double heading) {
+              const double at_start = std::remainder(std::atan2(o.y(), o.x()) - heading, 2 * M_PI);
+              const Eigen::Vector2d from_w = o - w;
+              const double at_w = std::remainder(std::atan2(from_w.y(), from_w.x()) - heading, 2 * M_PI);
+              return std::max(std::abs(at_start), std::abs(at_w));
+            };
+            backwards_to_waypoint_ = worst(h + M_PI) < worst(h);
+          }
+          const bool behind = *backwards_to_waypoint_;
           const Eigen::Vector3d w = behind ? Eigen::Vector3d(-a.bWaypoint.x(), -a.bWaypoint.y(), 0)
                                            : a.bWaypoint;
           c = compute(w, w, 0.5 * opt_.waypoint_tolerance_m);

@@ -152,9 +152,11 @@ class BaseApproachTask {
   BaseCommand face(const Eigen::Vector3d& bAim);
   /// To the goal pose wMG (the base pose w = world or odometry): stages ApproachStage, chosen
   /// afresh after restart(): a base near the approach line (line_tolerance_m) and before W
-  /// starts along the line, any other at W. Zero velocity once done.
-  BaseCommand approach(const Pose& wMb, const Pose& wMG);
-  void restart() { stage_.reset(); }
+  /// starts along the line, any other at W. Zero velocity once done. `wObject` (the object's
+  /// centre, same frame as wMb) decides the way to W; without it, Q on the line beyond G.
+  BaseCommand approach(const Pose& wMb, const Pose& wMG,
+                       const std::optional<Eigen::Vector3d>& wObject = std::nullopt);
+  void restart() { stage_.reset(), backwards_to_waypoint_.reset(); }
   const BaseApproachOptions& options() const { return opt_; }
 
  private:
@@ -162,6 +164,9 @@ class BaseApproachTask {
   BaseApproachOptions opt_;
   std::unique_ptr<Impl> impl_;
   std::optional<ApproachStage> stage_;
+  /// The way to W, chosen when the base first heads there and kept until it reaches it (the
+  /// choice is a tie when W and the object are 90 deg apart: chosen afresh, it would flip).
+  std::optional<bool> backwards_to_waypoint_;
 };
 
 // ---- arm -------------------------------------------------------------------------------------

@@ -174,6 +174,47 @@ TEST(ServoTasks, BaseApproachReachesTheGoalPoseFromSeededStarts) {
   EXPECT_LT(via_waypoint, 20);
 }
 
+// The way to the waypoint W keeps the object within the head's reach (its pan limit, 1.57 rad,
+// plus half its field of view, 0.57). The object 1.86 rad to the right of the base, W behind it
+// (x < 0) on the way: backing up to W, as any W behind once did, would leave the object behind
+// the base (3.1 rad off its heading) at W; driving forwards keeps it within 1.9 rad, ahead at W.
+// The object ahead and W just behind the base: it backs up, the object ahead all along.
+TEST(ServoTasks, BaseApproachGoesToTheWaypointTheWayThatKeepsTheObjectInView) {
+  const robot::EnonModel m = enon();
+  const double dt = m.control_period_s;
+  struct Case {
+    Eigen::Vector3d object;  // world, at table height
+    double line;             // heading of G (towards the object)
+    bool expect_backwards;
+    double max_bearing;      // of the object from the base's heading over the approach (rad)
+  };
+  for (const Case& k : {Case{{-0.75, -2.5, 0.8}, 4.451, false, 1.9}, Case{{0.9, 0.0, 0.8}, 0.0, true, 0.3}}) {
+    const Eigen::Vector3d x_g(std::cos(k.line), std::sin(k.line), 0);
+    const Eigen::Vector3d g = k.object - 0.6 * x_g;
+    const Pose wMg = planar(g.x(), g.y(), k.line);
+    servo::BaseApproachTask task;
+    robot::PlanarPose b{0, 0, 0};
+    double worst = 0, first_v = 0, time = 0;
+    servo::BaseCommand c;
+    for (; time < 30; time += dt) {
+      c = task.approach(b.toPose(), wMg, k.object);
+      if (c.stage == servo::ApproachStage::kToWaypoint && first_v == 0 && std::abs(c.v_mps) > 1e-3)
+        first_v = c.v_mps;
+      const Eigen::Vector3d bo = b.toPose().inverse() * k.object;
+      worst = std::max(worst, std::abs(std::atan2(bo.y(), bo.x())));
+      if (c.stage == servo::ApproachStage::kDone) break;
+      double v = c.v_mps, w = c.w_radps;
+      robot::clipBaseVelocity(m.base, &v, &w);
+      b = robot::integrateUnicycle(b, v, w, dt);
+    }
+    std::printf("object at (%.2f, %.2f): to W %s, the object at most %.2f rad off the heading, done in %.1f s\n",
+                k.object.x(), k.object.y(), first_v < 0 ? "backwards" : "forwards", worst, time);
+    EXPECT_EQ(c.stage, servo::ApproachStage::kDone);
+    EXPECT_EQ(first_v < 0, k.expect_backwards);
+    EXPECT_LT(worst, k.max_bearing);
+  }
+}
+
 // Arm align: from seeded starts (the arm's joints up to 0.25 rad off the reaching configuration,
 // i.e. the gripper ~5-20 cm and up to 15 deg off the pre-grasp pose; the base up to 3 cm and
 // 3 deg off its goal, more than the approach leaves) the gripper reaches e* within 1 mm and
