@@ -29,9 +29,9 @@
 //     frame the estimator cannot use (wrong size, no ground truth for the oracle), an exception
 //     from anything (the estimator included): the robot is stopped, step() returns kError with
 //     one line, and every later step() only stops the robot again.
-// and no forward base motion in the approach, the align and the final approach that would bring
-// the base's body within fixture_clearance_m of a fixture of the room map (the arm then reaches
-// alone).
+// and no forward base motion in the approach and the align that would bring the base's body
+// within fixture_clearance_m of a fixture of the room map (the arm then reaches alone), nor in
+// the final approach at all (final_approach_base false, the default).
 //
 // Frames: w is the ODOMETRY frame (wMb_odom); the target is kept as wMo = wMb_odom(capture) *
 // bMc(capture) * cMo, i.e. compensated for the camera and base motion between the exposure and
@@ -74,9 +74,11 @@ struct GraspOptions {
   /// The base does not drive forward when its body (the model's vertical cylinder about z_b)
   /// would come within this of a fixture of `room` (m) in the next control period at the phase's
   /// speed; turning never brings it closer. The arm then serves the task alone. Without a room
-  /// map there is no guard. 2 cm: above the odometry's drift over an approach (a few mm in the
-  /// simulator, docs/results.md), below the 6 cm the body clears a table by in a grasp of the
+  /// map there is no guard. 2 cm: below the 6 cm the body clears a table by in a grasp of the
   /// reach the model was checked for (config/enon.yaml), so that grasp never meets the guard.
+  /// The map is odometry-relative: with odometry noise it can be off by more than this
+  /// (room_hotel_corner), which is why the final approach does not rely on it
+  /// (final_approach_base).
   double fixture_clearance_m = 0.02;
   double approach_arm_tolerance_rad = 0.05;    ///< arm joints at the reaching configuration
   double arm_ready_speed_fraction = 0.6;  ///< of each joint's limit, moving to that configuration

@@ -428,6 +428,12 @@ TEST(GraspController, BadOptionsThrowNamingTheField) {
   o = {};
   o.unreachable_patience_s = std::nan("");
   expectThrow(o, "GraspOptions.unreachable_patience_s");
+  o = {};
+  o.fixture_clearance_m = std::nan("");
+  expectThrow(o, "GraspOptions.fixture_clearance_m");
+  o = {};
+  o.fixture_clearance_m = -0.01;
+  expectThrow(o, "GraspOptions.fixture_clearance_m");
 }
 
 namespace {
